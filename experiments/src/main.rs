@@ -1,0 +1,34 @@
+//! `ifslab`: render, sample and invert Iterated Function Systems from the command line.
+
+mod cmd;
+mod plot;
+mod progress;
+
+use clap::{Parser, Subcommand};
+
+/// ifslab — the fractal inverse problem, from images, point clouds and textures.
+#[derive(Parser, Debug)]
+#[command(name = "ifslab", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Render a code file or a built-in code to a PNG with the evaluation renderer.
+    Render(cmd::render::Args),
+    /// Draw random codes with the Anderson–Farrell sampler.
+    Sample(cmd::sample::Args),
+    /// List the built-in codes.
+    Codes,
+}
+
+fn main() -> anyhow::Result<()> {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Render(a) => cmd::render::run(a),
+        Command::Sample(a) => cmd::sample::run(a),
+        Command::Codes => cmd::codes::run(),
+    }
+}

@@ -1,0 +1,153 @@
+//! Plots with plotters on a bundled font (the machine may have no system fonts).
+//!
+//! Every figure goes through [`ensure_font`], which registers DejaVu Sans (shipped in
+//! `experiments/assets`, licence beside it) as plotters' "sans-serif".
+
+use std::path::Path;
+use std::sync::Once;
+
+use anyhow::Context;
+use plotters::prelude::*;
+use plotters::style::FontStyle;
+
+static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
+static REGISTER: Once = Once::new();
+
+/// Registers the bundled font once per process.
+pub fn ensure_font() {
+    REGISTER.call_once(|| {
+        // The font is compiled in and valid; a failure here would be a build defect.
+        let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, FONT);
+    });
+}
+
+/// One named series of (x, y) points.
+pub struct Series<'a> {
+    pub name: &'a str,
+    pub points: Vec<(f64, f64)>,
+}
+
+/// A line chart of one or more series; `log_y` plots log10 of positive values.
+pub fn line_chart(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[Series<'_>],
+    log_y: bool,
+) -> anyhow::Result<()> {
+    ensure_font();
+    let tf = |y: f64| if log_y { y.max(1e-300).log10() } else { y };
+    let all: Vec<(f64, f64)> = series
+        .iter()
+        .flat_map(|s| s.points.iter().map(|&(x, y)| (x, tf(y))))
+        .filter(|(x, y)| x.is_finite() && y.is_finite())
+        .collect();
+    if all.is_empty() {
+        anyhow::bail!("nothing to plot in {title}");
+    }
+    let (x0, x1) = min_max(all.iter().map(|p| p.0));
+    let (y0, y1) = min_max(all.iter().map(|p| p.1));
+    let pad = ((y1 - y0) * 0.05).max(1e-9);
+    let root = BitMapBackend::new(path, (900, 560)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let y_desc = if log_y {
+        format!("log10 {y_label}")
+    } else {
+        y_label.to_owned()
+    };
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 24))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x0..x1.max(x0 + 1e-9), (y0 - pad)..(y1 + pad))?;
+    chart
+        .configure_mesh()
+        .x_desc(x_label)
+        .y_desc(y_desc)
+        .label_style(("sans-serif", 14))
+        .draw()?;
+    for (i, s) in series.iter().enumerate() {
+        let color = Palette99::pick(i).to_rgba();
+        chart
+            .draw_series(LineSeries::new(
+                s.points
+                    .iter()
+                    .map(|&(x, y)| (x, tf(y)))
+                    .filter(|(x, y)| x.is_finite() && y.is_finite()),
+                color.stroke_width(2),
+            ))?
+            .label(s.name)
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+            });
+    }
+    if series.len() > 1 {
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 14))
+            .draw()?;
+    }
+    root.present()
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}
+
+/// A 2-D scatter of several point sets, each in its own colour.
+pub fn scatter(
+    path: &Path,
+    title: &str,
+    sets: &[Series<'_>],
+    point_size: u32,
+) -> anyhow::Result<()> {
+    ensure_font();
+    let all: Vec<(f64, f64)> = sets.iter().flat_map(|s| s.points.iter().copied()).collect();
+    if all.is_empty() {
+        anyhow::bail!("nothing to plot in {title}");
+    }
+    let (x0, x1) = min_max(all.iter().map(|p| p.0));
+    let (y0, y1) = min_max(all.iter().map(|p| p.1));
+    let span = (x1 - x0).max(y1 - y0).max(1e-9) * 0.55;
+    let (cx, cy) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
+    let root = BitMapBackend::new(path, (720, 760)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 22))
+        .margin(12)
+        .x_label_area_size(30)
+        .y_label_area_size(50)
+        .build_cartesian_2d((cx - span)..(cx + span), (cy - span)..(cy + span))?;
+    chart
+        .configure_mesh()
+        .label_style(("sans-serif", 12))
+        .draw()?;
+    for (i, s) in sets.iter().enumerate() {
+        let color = Palette99::pick(i).mix(0.6);
+        chart
+            .draw_series(
+                s.points
+                    .iter()
+                    .map(|&(x, y)| Circle::new((x, y), point_size, color.filled())),
+            )?
+            .label(s.name)
+            .legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .draw()?;
+    root.present()
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}
+
+fn min_max(it: impl Iterator<Item = f64>) -> (f64, f64) {
+    it.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+        (a.min(v), b.max(v))
+    })
+}

@@ -1,0 +1,16 @@
+//! Chaos-game point generators.
+//!
+//! Many independent trajectories run in parallel. Trajectory `i` draws every random number
+//! (start point, map sequence) from its own generator seeded by `(seed, i)`, so the points
+//! depend on the seed and the trajectory layout only, never on the number of threads.
+//! The first `warmup` points of each trajectory are dropped: from a start point in a box
+//! they need a few steps to reach the attractor (error shrinks like σmax^k).
+//! A trajectory whose point becomes non-finite is reported as [`crate::Error::Divergent`].
+
+mod game;
+mod rng;
+mod sampler;
+
+pub use game::{ChaosGame, Points, Trajectory, generate_nd};
+pub use rng::{mix_seed, trajectory_rng};
+pub use sampler::MapSampler;

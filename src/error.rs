@@ -1,0 +1,113 @@
+//! The core's error type: one enum, every message says what went wrong and what to do.
+
+use std::path::PathBuf;
+
+/// Result alias used throughout the core.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Everything the core can refuse or fail at.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// A number in a code, a parameter vector or a config is NaN or infinite.
+    #[error(
+        "{what} contains a non-finite value ({value}) at {location}; every entry must be a finite number"
+    )]
+    NonFinite {
+        /// Which object held the value.
+        what: String,
+        /// Where in that object (e.g. `map 2, matrix[1][0]`).
+        location: String,
+        /// The offending value.
+        value: f64,
+    },
+    /// A map is not a contraction.
+    #[error(
+        "map {index} is not contractive: its largest singular value is {sigma_max:.6} (must be < 1). \
+         Scale the map down, or set \"allow_non_contractive\": true for flame-like codes"
+    )]
+    NonContractive {
+        /// Index of the offending map.
+        index: usize,
+        /// Its largest singular value (operator 2-norm).
+        sigma_max: f64,
+    },
+    /// Array lengths or dimensions that do not agree.
+    #[error("wrong shape: {0}")]
+    Shape(String),
+    /// Map probabilities that are negative or do not sum to one.
+    #[error("invalid probabilities: {0}")]
+    Probabilities(String),
+    /// A parameter outside its allowed range.
+    #[error("invalid parameter `{name}`: {message}")]
+    InvalidParameter {
+        /// The parameter's name as the user writes it.
+        name: &'static str,
+        /// What is wrong and what is allowed.
+        message: String,
+    },
+    /// A trajectory of the chaos game left every bound (a non-finite point).
+    #[error(
+        "trajectory {trajectory} diverged at step {step} (point became non-finite); \
+         the code is not contractive enough to have an attractor"
+    )]
+    Divergent {
+        /// Trajectory index.
+        trajectory: usize,
+        /// Step at which the point stopped being finite.
+        step: usize,
+    },
+    /// An empty input (no maps, no points, an empty image).
+    #[error("empty input: {0}")]
+    Empty(String),
+    /// A named code that is not in the built-in library.
+    #[error("unknown built-in code `{name}`; known codes: {known}")]
+    UnknownCode {
+        /// The name asked for.
+        name: String,
+        /// Comma-separated list of the known names.
+        known: String,
+    },
+    /// A code file that is not valid JSON or does not follow the schema.
+    #[error("cannot parse code file {path}: {message}")]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// What the parser said.
+        message: String,
+    },
+    /// An image that could not be read or written.
+    #[error("image error for {path}: {message}")]
+    Image {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+    /// Underlying I/O failure, with the file it concerned.
+    #[error("I/O error on {path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The OS error.
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+impl Error {
+    /// Shorthand for [`Error::InvalidParameter`].
+    pub fn param(name: &'static str, message: impl Into<String>) -> Self {
+        Error::InvalidParameter {
+            name,
+            message: message.into(),
+        }
+    }
+
+    /// Shorthand for [`Error::Io`].
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Error::Io {
+            path: path.into(),
+            source,
+        }
+    }
+}

@@ -1,0 +1,24 @@
+//! # ifslab
+//!
+//! The core of ifslab, a framework for the *fractal inverse problem*: given an image, a
+//! point cloud or a texture, find the Iterated Function System that generates it.
+//!
+//! This crate holds what every inversion strategy shares:
+//! - [`model`]: maps (affine, similitudes), parameterisations θ ↔ maps, code files, the
+//!   classic and random codes;
+//! - [`chaos`]: deterministic, parallel chaos-game point generators;
+//! - [`render`]: the fast evaluation renderer (tens of millions of points at any zoom);
+//! - [`metrics`]: IoU, box-counting dimension and friends.
+//!
+//! Strategies live in the `ifslab-strategies` crate and the `ifslab` command in
+//! `ifslab-experiments`.
+#![warn(missing_docs)]
+
+pub mod chaos;
+pub mod error;
+pub mod io;
+pub mod metrics;
+pub mod model;
+pub mod render;
+
+pub use error::{Error, Result};

@@ -1,0 +1,26 @@
+//! IFS models: maps, their parameterisations, probabilities, code files, and the codes
+//! that come with the library (classic ones and random ones).
+//!
+//! - [`affine`]: 2-D affine maps (the renderers' map) and dimension-generic ones; the
+//!   [`Map2`] trait generators iterate, which flame transforms and segment maps will
+//!   implement too.
+//! - [`param`]: raw vector θ ↔ maps, with the chain rule and projection.
+//! - [`similitude`]: `s·R·x + t` in any dimension (EM's family).
+//! - [`probs`]: uniform, ∝|det| with a floor, explicit.
+//! - [`code`]: the JSON code file, validated on load.
+//! - [`library`]: Sierpiński, fern, Koch, carpet, dragon, … by name.
+//! - [`random`]: the Anderson–Farrell random-code sampler.
+
+pub mod affine;
+pub mod code;
+pub mod library;
+pub mod param;
+pub mod probs;
+pub mod random;
+pub mod similitude;
+
+pub use affine::{Affine2, AffineN, Map2};
+pub use code::{Framing, IfsCode};
+pub use param::{Naive, ParamKind, Parameterisation, Svd};
+pub use probs::ProbabilityRule;
+pub use similitude::Similitude;

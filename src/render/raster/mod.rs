@@ -1,0 +1,433 @@
+//! The evaluation renderer: streams N chaos-game points (default 50 million) into an image
+//! without storing them.
+//!
+//! Two modes:
+//! - [`RenderMode::Coverage`]: the papers' ground truth. Every point sets one bit of an
+//!   `s×`-supersampled binary buffer; each output pixel is the covered fraction of its
+//!   `s×s` sub-pixels (a box downsample). The buffer is tiled so a pixel's sub-pixels are
+//!   contiguous bits, which keeps the downsample a popcount.
+//! - [`RenderMode::Density`]: hit counts per pixel, log tone-mapped
+//!   (`log(1 + c) / log(1 + max c)`).
+//!
+//! Trajectories are split into one contiguous group per thread, each with its own buffer,
+//! merged afterwards by OR (coverage) or sum (density): both are order-independent, and
+//! every trajectory has its own seeded generator, so the image is bit-identical for any
+//! thread count.
+//!
+//! Zoom views generate points everywhere and keep those in the window; `min_hits` asks for
+//! more rounds of fresh trajectories until the window has received that many points (or
+//! `max_points` were generated), which stays deterministic; `time_limit` caps wall time
+//! (its result then depends on the machine's speed).
+
+mod coverage;
+mod density;
+
+use std::time::Instant;
+
+use indicatif::ProgressBar;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::chaos::{MapSampler, Trajectory};
+use crate::error::{Error, Result};
+use crate::model::affine::Map2;
+use crate::model::code::Framing;
+use crate::render::framing::{FIT_FILL, View, Zoom, fit_window, pilot_bbox, zoom_window};
+
+/// What each pixel measures.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RenderMode {
+    /// Fraction of covered sub-pixels (binary supersampling).
+    #[default]
+    Coverage,
+    /// Log tone-mapped hit counts.
+    Density,
+}
+
+/// Everything a render needs besides the code.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RenderConfig {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Points generated per round (after warm-up).
+    pub points: u64,
+    /// Supersampling factor per side (coverage mode).
+    pub supersample: u32,
+    /// What each pixel measures.
+    pub mode: RenderMode,
+    /// Trajectories per round; `0` picks `min(1024, points / 256)`.
+    pub trajectories: usize,
+    /// Steps dropped at the start of each trajectory.
+    pub warmup: usize,
+    /// Seed of the run (trajectory generators and pilot run).
+    pub seed: u64,
+    /// Fit the attractor or use a fixed window.
+    pub view: View,
+    /// Optional zoom applied to the window.
+    pub zoom: Option<Zoom>,
+    /// Keep generating rounds until this many points landed in the window (0: one round).
+    pub min_hits: u64,
+    /// Cap on points generated in all rounds when `min_hits` is set (0: 64 × `points`).
+    pub max_points: u64,
+    /// Optional wall-clock cap in seconds on the rounds (not deterministic).
+    pub time_limit: Option<f64>,
+}
+
+impl Default for RenderConfig {
+    fn default() -> Self {
+        RenderConfig {
+            width: 1024,
+            height: 1024,
+            points: 50_000_000,
+            supersample: 1,
+            mode: RenderMode::Coverage,
+            trajectories: 0,
+            warmup: 100,
+            seed: 0,
+            view: View::Fit,
+            zoom: None,
+            min_hits: 0,
+            max_points: 0,
+            time_limit: None,
+        }
+    }
+}
+
+impl RenderConfig {
+    /// Checks every field; the error names the one to change.
+    pub fn validate(&self) -> Result<()> {
+        if self.width == 0 || self.height == 0 {
+            return Err(Error::param("size", "width and height must be at least 1"));
+        }
+        if self.supersample == 0 || self.supersample > 64 {
+            return Err(Error::param(
+                "supersample",
+                format!("must lie in 1..=64, got {}", self.supersample),
+            ));
+        }
+        let sub = self.width as u64 * self.height as u64 * (self.supersample as u64).pow(2);
+        if self.mode == RenderMode::Coverage && sub > (1u64 << 36) {
+            return Err(Error::param(
+                "supersample",
+                format!(
+                    "{}×{} at {}× needs {} GiB of coverage bits per thread; lower the size or the supersampling",
+                    self.width,
+                    self.height,
+                    self.supersample,
+                    sub >> 33
+                ),
+            ));
+        }
+        if self.points == 0 {
+            return Err(Error::param("points", "must be at least 1"));
+        }
+        if let Some(z) = &self.zoom
+            && !(z.factor.is_finite() && z.factor > 0.0)
+        {
+            return Err(Error::param(
+                "zoom",
+                format!("factor must be finite and > 0, got {}", z.factor),
+            ));
+        }
+        if let View::Window(w) = &self.view {
+            w.validate()?;
+        }
+        if let Some(t) = self.time_limit
+            && !(t.is_finite() && t > 0.0)
+        {
+            return Err(Error::param(
+                "time_limit",
+                format!("must be > 0 seconds, got {t}"),
+            ));
+        }
+        Ok(())
+    }
+
+    fn trajectories_per_round(&self) -> usize {
+        if self.trajectories > 0 {
+            self.trajectories
+        } else {
+            (self.points / 256).clamp(1, 1024) as usize
+        }
+    }
+}
+
+/// What a render did.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RenderStats {
+    /// The window the image shows.
+    pub window: Framing,
+    /// Points generated (after warm-up) in all rounds.
+    pub points_generated: u64,
+    /// Points that landed in the window.
+    pub points_in_window: u64,
+    /// Rounds of trajectories run.
+    pub rounds: u32,
+    /// Wall-clock seconds of the render (pilot run included).
+    pub seconds: f64,
+    /// Whether the time limit stopped the rounds before `min_hits` was reached.
+    pub stopped_by_time: bool,
+}
+
+/// A rendered grey image, values in [0, 1] (1 = attractor), row 0 at the top (largest y).
+#[derive(Clone, Debug)]
+pub struct Raster {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Row-major values.
+    pub values: Vec<f32>,
+    /// How it was made.
+    pub stats: RenderStats,
+}
+
+/// The world → super-resolution mapping shared by both accumulators.
+#[derive(Clone, Copy)]
+pub(crate) struct PixelMap {
+    x0: f64,
+    y1: f64,
+    /// Output pixels per world unit.
+    kx: f64,
+    ky: f64,
+    w: f64,
+    h: f64,
+    width: u64,
+    s: u32,
+}
+
+impl PixelMap {
+    fn new(win: &Framing, width: u32, height: u32, s: u32) -> Self {
+        let size = win.size();
+        PixelMap {
+            x0: win.min[0],
+            y1: win.max[1],
+            kx: width as f64 / size[0],
+            ky: height as f64 / size[1],
+            w: width as f64,
+            h: height as f64,
+            width: width as u64,
+            s,
+        }
+    }
+
+    /// Output pixel index and sub-pixel `(sx, sy)` of a point, or `None` outside the window
+    /// (and for non-finite points, whose comparisons fail).
+    #[inline(always)]
+    fn locate(&self, p: [f64; 2]) -> Option<(u64, u32, u32)> {
+        let fx = (p[0] - self.x0) * self.kx;
+        let fy = (self.y1 - p[1]) * self.ky;
+        if fx >= 0.0 && fx < self.w && fy >= 0.0 && fy < self.h {
+            let px = fx as u64;
+            let py = fy as u64;
+            let s = self.s as f64;
+            let sx = (((fx - px as f64) * s) as u32).min(self.s - 1);
+            let sy = (((fy - py as f64) * s) as u32).min(self.s - 1);
+            Some((py * self.width + px, sx, sy))
+        } else {
+            None
+        }
+    }
+}
+
+/// Accumulates points of one thread's trajectories.
+pub(crate) trait Accumulator: Send {
+    /// Records one in-window point.
+    fn add(&mut self, pixel: u64, sx: u32, sy: u32);
+    /// Folds another accumulator of the same shape into this one.
+    fn merge(&mut self, other: Self);
+    /// Final pixel values in [0, 1].
+    fn finish(self, width: u32, height: u32) -> Vec<f32>;
+}
+
+/// Renders the attractor of `maps` (drawn with `probs`) as configured.
+pub fn render<M: Map2>(
+    maps: &[M],
+    probs: &[f64],
+    cfg: &RenderConfig,
+    progress: Option<&ProgressBar>,
+) -> Result<Raster> {
+    cfg.validate()?;
+    if maps.is_empty() {
+        return Err(Error::Empty("the code has no maps".into()));
+    }
+    let sampler = MapSampler::new(probs)?;
+    if sampler.len() != maps.len() {
+        return Err(Error::Shape(format!(
+            "{} probabilities for {} maps",
+            sampler.len(),
+            maps.len()
+        )));
+    }
+    let start = Instant::now();
+    let base = match cfg.view {
+        View::Window(w) => w,
+        View::Fit => {
+            let (lo, hi) = pilot_bbox(maps, probs, cfg.seed)?;
+            fit_window(lo, hi, cfg.width, cfg.height, FIT_FILL)?
+        }
+    };
+    let window = match &cfg.zoom {
+        Some(z) => zoom_window(&base, z)?,
+        None => base,
+    };
+    let (values, counts) = match cfg.mode {
+        RenderMode::Coverage => {
+            let s = cfg.supersample;
+            let words = coverage::words_for(cfg.width, cfg.height, s);
+            run_rounds(maps, &sampler, cfg, &window, progress, start, || {
+                coverage::Coverage::new(words, s)
+            })?
+        }
+        RenderMode::Density => run_rounds(maps, &sampler, cfg, &window, progress, start, || {
+            density::Density::new(cfg.width, cfg.height)
+        })?,
+    };
+    Ok(Raster {
+        width: cfg.width,
+        height: cfg.height,
+        values,
+        stats: RenderStats {
+            window,
+            points_generated: counts.0,
+            points_in_window: counts.1,
+            rounds: counts.2,
+            seconds: start.elapsed().as_secs_f64(),
+            stopped_by_time: counts.3,
+        },
+    })
+}
+
+type RoundCounts = (u64, u64, u32, bool);
+
+fn run_rounds<M: Map2, A: Accumulator, F: Fn() -> A + Sync>(
+    maps: &[M],
+    sampler: &MapSampler,
+    cfg: &RenderConfig,
+    window: &Framing,
+    progress: Option<&ProgressBar>,
+    start: Instant,
+    make: F,
+) -> Result<(Vec<f32>, RoundCounts)> {
+    let pm = PixelMap::new(window, cfg.width, cfg.height, cfg.supersample);
+    let t = cfg.trajectories_per_round();
+    let groups = rayon::current_num_threads().clamp(1, t);
+    let max_points = if cfg.max_points > 0 {
+        cfg.max_points
+    } else {
+        cfg.points.saturating_mul(64)
+    };
+    if let Some(pb) = progress {
+        pb.set_length(cfg.points);
+    }
+    let mut acc: Option<A> = None;
+    let (mut generated, mut hits, mut rounds, mut by_time) = (0u64, 0u64, 0u32, false);
+    loop {
+        let first = rounds as u64 * t as u64;
+        let results: Vec<Result<(A, u64)>> = (0..groups)
+            .into_par_iter()
+            .map(|g| {
+                let mut a = make();
+                let mut h = 0u64;
+                for i in (g * t / groups)..((g + 1) * t / groups) {
+                    let n = points_of(cfg.points, t, i);
+                    h += run_trajectory(maps, sampler, cfg, first + i as u64, n, &pm, &mut a)?;
+                    if let Some(pb) = progress {
+                        pb.inc(n);
+                    }
+                }
+                Ok((a, h))
+            })
+            .collect();
+        for r in results {
+            let (a, h) = r?;
+            hits += h;
+            match &mut acc {
+                None => acc = Some(a),
+                Some(x) => x.merge(a),
+            }
+        }
+        generated += cfg.points;
+        rounds += 1;
+        if cfg.min_hits == 0 || hits >= cfg.min_hits || generated >= max_points {
+            break;
+        }
+        if let Some(limit) = cfg.time_limit
+            && start.elapsed().as_secs_f64() > limit
+        {
+            by_time = true;
+            break;
+        }
+        if let Some(pb) = progress {
+            pb.inc_length(cfg.points);
+        }
+    }
+    let values = acc
+        .expect("at least one round ran")
+        .finish(cfg.width, cfg.height);
+    Ok((values, (generated, hits, rounds, by_time)))
+}
+
+/// Points kept by trajectory `i` of `t` when a round has `total` points.
+fn points_of(total: u64, t: usize, i: usize) -> u64 {
+    let base = total / t as u64;
+    base + u64::from((i as u64) < total % t as u64)
+}
+
+/// Runs one trajectory into the accumulator; returns the in-window count.
+#[inline(never)]
+fn run_trajectory<M: Map2, A: Accumulator>(
+    maps: &[M],
+    sampler: &MapSampler,
+    cfg: &RenderConfig,
+    index: u64,
+    n: u64,
+    pm: &PixelMap,
+    acc: &mut A,
+) -> Result<u64> {
+    let mut tr = Trajectory::new(maps, sampler, cfg.seed, index, 1.0);
+    tr.skip_steps(cfg.warmup);
+    let mut hits = 0u64;
+    for _ in 0..n {
+        let p = tr.step();
+        if let Some((pix, sx, sy)) = pm.locate(p) {
+            acc.add(pix, sx, sy);
+            hits += 1;
+        }
+    }
+    let p = tr.point();
+    if !(p[0].is_finite() && p[1].is_finite()) {
+        // Non-finite is absorbing for affine maps: replay to find the first bad step.
+        let mut replay = Trajectory::new(maps, sampler, cfg.seed, index, 1.0);
+        let mut step = 0usize;
+        loop {
+            let q = replay.step();
+            if !(q[0].is_finite() && q[1].is_finite()) {
+                break;
+            }
+            step += 1;
+        }
+        return Err(Error::Divergent {
+            trajectory: index as usize,
+            step,
+        });
+    }
+    Ok(hits)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn trajectory_split_sums_to_total() {
+        for (total, t) in [(10u64, 3usize), (1000, 1024), (50_000_000, 1024)] {
+            let s: u64 = (0..t).map(|i| points_of(total, t, i)).sum();
+            assert_eq!(s, total);
+        }
+    }
+}
