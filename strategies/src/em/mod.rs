@@ -1,0 +1,1 @@
+//! Expectation–maximisation for similitude IFSs (Bloem & de Rooij). Work in progress.

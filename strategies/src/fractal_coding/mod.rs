@@ -1,0 +1,1 @@
+//! Fractal-coding texture upsampling (Kominami & Mukai). Work in progress.
