@@ -17,6 +17,7 @@
 pub mod chaos;
 pub mod error;
 pub mod io;
+pub mod loss;
 pub mod metrics;
 pub mod model;
 pub mod render;

@@ -1,0 +1,1 @@
+//! Image losses and regularisers, each with its gradient. Work in progress.
