@@ -27,6 +27,54 @@ use crate::error::{Error, Result};
 use crate::model::affine::{Affine2, AffineN};
 use crate::model::probs::{ProbabilityRule, validate_probabilities};
 
+/// The first bare `NaN`/`Infinity` token or out-of-range number outside strings, as
+/// `(line, column, token)`, both 1-based.
+fn find_non_finite_token(text: &str) -> Option<(usize, usize, String)> {
+    let mut in_string = false;
+    let mut escaped = false;
+    let bytes = text.as_bytes();
+    let mut i = 0;
+    while i < bytes.len() {
+        let c = bytes[i];
+        if in_string {
+            match (escaped, c) {
+                (true, _) => escaped = false,
+                (false, b'\\') => escaped = true,
+                (false, b'"') => in_string = false,
+                _ => {}
+            }
+            i += 1;
+            continue;
+        }
+        if c == b'"' {
+            in_string = true;
+            i += 1;
+            continue;
+        }
+        if c == b'-' || c == b'+' || c.is_ascii_alphanumeric() || c == b'.' {
+            let start = i;
+            while i < bytes.len()
+                && (bytes[i].is_ascii_alphanumeric() || matches!(bytes[i], b'-' | b'+' | b'.'))
+            {
+                i += 1;
+            }
+            let token = &text[start..i];
+            let bare = token.trim_start_matches(['-', '+']);
+            let overflow = token.parse::<f64>().is_ok_and(|v| v.is_infinite())
+                && !bare.eq_ignore_ascii_case("inf")
+                && !bare.eq_ignore_ascii_case("infinity");
+            if bare == "NaN" || bare == "Infinity" || bare == "inf" || overflow {
+                let line = text[..start].matches('\n').count() + 1;
+                let col = start - text[..start].rfind('\n').map_or(0, |p| p + 1) + 1;
+                return Some((line, col, token.to_owned()));
+            }
+            continue;
+        }
+        i += 1;
+    }
+    None
+}
+
 /// The format tag written into every code file.
 pub const FORMAT_TAG: &str = "ifslab-code/1";
 
@@ -302,9 +350,20 @@ impl IfsCode {
 
     /// Parses and validates a code from JSON text; `origin` names the source in errors.
     pub fn from_json(text: &str, origin: &Path) -> Result<Self> {
-        let doc: CodeFile = serde_json::from_str(text).map_err(|e| Error::Parse {
-            path: origin.to_owned(),
-            message: e.to_string(),
+        let doc: CodeFile = serde_json::from_str(text).map_err(|e| {
+            // JSON has no NaN or infinity, but Python's json module writes bare `NaN` and
+            // `Infinity` tokens and overflowing literals parse as infinite: name them.
+            if let Some((line, col, token)) = find_non_finite_token(text) {
+                return Error::NonFinite {
+                    what: format!("code file {}", origin.display()),
+                    location: format!("line {line}, column {col} (`{token}`)"),
+                    value: if token.contains("NaN") { f64::NAN } else { f64::INFINITY },
+                };
+            }
+            Error::Parse {
+                path: origin.to_owned(),
+                message: e.to_string(),
+            }
         })?;
         IfsCode::from_file_doc(doc)
     }
