@@ -22,6 +22,10 @@ enum Command {
     Sample(cmd::sample::Args),
     /// List the built-in codes.
     Codes,
+    /// Fit an IFS of similitudes to a point cloud (any dimension) with EM.
+    FitPoints(cmd::fit_points::Args),
+    /// Fractal-coding texture upsampling: encode, upsample, reproduce the paper.
+    Texture(cmd::texture::Args),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -30,5 +34,7 @@ fn main() -> anyhow::Result<()> {
         Command::Render(a) => cmd::render::run(a),
         Command::Sample(a) => cmd::sample::run(a),
         Command::Codes => cmd::codes::run(),
+        Command::FitPoints(a) => cmd::fit_points::run(a),
+        Command::Texture(a) => cmd::texture::run(a),
     }
 }

@@ -1,8 +1,10 @@
 //! One module per subcommand: its clap `Args` and a `run` function.
 
 pub mod codes;
+pub mod fit_points;
 pub mod render;
 pub mod sample;
+pub mod texture;
 
 use std::path::Path;
 
