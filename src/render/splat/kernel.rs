@@ -143,17 +143,319 @@ fn bin<T: Float + Send + Sync>(uv: &[[T; 2]], g: &Geometry) -> (Vec<usize>, Vec<
     (tile_start, entries)
 }
 
-/// Gaussian weights `exp(−(i + ½ − x)²/2σ²)` for pixels `lo..=hi`, and the offsets.
+/// Lanes of the inner loops: footprint rows are padded to a multiple of this (with zero
+/// weights, which contribute exactly nothing) so the loops vectorise, and reductions keep
+/// `LANES` partial sums combined in a fixed order.
+const LANES: usize = 8;
+
+/// Gaussian weights `exp(−(i + ½ − x)²/2σ²)` and offsets for pixels `lo..=hi`, padded with
+/// zero weights to a multiple of [`LANES`].
+///
+/// Two exponentials per row instead of one per pixel: with `d_{i+1} = d_i + 1`,
+/// `w_{i+1} = w_i·r_i` and `r_{i+1} = r_i·q`, where `r_i = exp(−(2d_i + 1)/2σ²)` and
+/// `q = exp(−1/σ²)`; over the ≤ 2·radius·σ + 1 pixels of a footprint this stays within a few
+/// ulps of the direct formula.
 #[inline(always)]
-fn weights<T: Float>(x: T, lo: usize, hi: usize, inv2s2: T, w: &mut Vec<T>, d: &mut Vec<T>) {
+fn weights<T: Float>(x: T, lo: usize, hi: usize, inv2s2: T, q: T, w: &mut Vec<T>, d: &mut Vec<T>) {
     w.clear();
     d.clear();
     let half = c::<T>(0.5);
-    for i in lo..=hi {
-        let dx = T::from(i).unwrap() + half - x;
+    let two = c::<T>(2.0);
+    let mut dx = T::from(lo).unwrap() + half - x;
+    let mut wi = (-(dx * dx) * inv2s2).exp();
+    let mut r = (-(two * dx + T::one()) * inv2s2).exp();
+    for _ in lo..=hi {
         d.push(dx);
-        w.push((-(dx * dx) * inv2s2).exp());
+        w.push(wi);
+        wi = wi * r;
+        r = r * q;
+        dx = dx + T::one();
     }
+    while w.len() % LANES != 0 {
+        w.push(T::zero());
+        d.push(T::zero());
+    }
+}
+
+/// Constants of the footprint, in the working precision.
+#[derive(Clone, Copy)]
+struct Consts<T> {
+    inv2s2: T,
+    q: T,
+    eps: T,
+    inv1me: T,
+    amax: T,
+    dscale: T,
+    norm: T,
+}
+
+impl<T: Float> Consts<T> {
+    fn new(grid: &SplatGrid, g: &Geometry) -> Self {
+        Consts {
+            inv2s2: c(0.5 / (grid.sigma * grid.sigma)),
+            q: c((-1.0 / (grid.sigma * grid.sigma)).exp()),
+            eps: c(g.eps),
+            inv1me: c(1.0 / (1.0 - g.eps)),
+            amax: c(grid.alpha_max),
+            // dα/du = g_raw·(x + ½ − u)/(σ²(1 − ε)).
+            dscale: c(1.0 / (grid.sigma * grid.sigma * (1.0 - g.eps))),
+            norm: c(1.0 / (grid.supersample * grid.supersample) as f64),
+        }
+    }
+}
+
+/// Where one tile lies.
+#[derive(Clone, Copy)]
+struct TileGeom {
+    ox: usize,
+    oy: usize,
+    /// Output pixels of the tile (clipped at the image border).
+    pw: usize,
+    ph: usize,
+}
+
+impl Geometry {
+    /// Row stride of a tile buffer: the tile plus room for one padded footprint row.
+    fn stride(&self) -> usize {
+        self.ts + LANES
+    }
+
+    fn tile_len(&self) -> usize {
+        self.ts * self.stride()
+    }
+
+    fn tile(&self, t: usize, grid: &SplatGrid) -> TileGeom {
+        let (tx, ty) = (t % self.tiles_x, t / self.tiles_x);
+        TileGeom {
+            ox: tx * self.ts,
+            oy: ty * self.ts,
+            pw: TILE.min(grid.width - tx * TILE),
+            ph: TILE.min(grid.height - ty * TILE),
+        }
+    }
+
+    /// The footprint of point `(u, v)` clipped to a tile, as global pixel ranges.
+    #[inline(always)]
+    fn clip<T: Float>(&self, p: [T; 2], tg: &TileGeom) -> Option<(usize, usize, usize, usize)> {
+        let (u, v) = (p[0].to_f64()?, p[1].to_f64()?);
+        let (x0, x1) = footprint(u, self.r, self.gw)?;
+        let (y0, y1) = footprint(v, self.r, self.gh)?;
+        let (x0, x1) = (x0.max(tg.ox), x1.min(tg.ox + self.ts - 1));
+        let (y0, y1) = (y0.max(tg.oy), y1.min(tg.oy + self.ts - 1));
+        (x0 <= x1 && y0 <= y1).then_some((x0, x1, y0, y1))
+    }
+}
+
+/// Splats one tile's points into its buffer (transmittance or density), then pools it.
+#[inline(always)]
+fn tile_forward_impl<T: Float, const COVERAGE: bool>(
+    g: &Geometry,
+    k: &Consts<T>,
+    tg: &TileGeom,
+    s: usize,
+    list: &[u32],
+    uv: &[[T; 2]],
+    buf: &mut [T],
+) -> Vec<T> {
+    let stride = g.stride();
+    let (zero, one) = (T::zero(), T::one());
+    let (mut wx, mut wy, mut dx, mut dy) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for &j in list {
+        let p = uv[j as usize];
+        let Some((x0, x1, y0, y1)) = g.clip(p, tg) else {
+            continue;
+        };
+        weights(p[0], x0, x1, k.inv2s2, k.q, &mut wx, &mut dx);
+        weights(p[1], y0, y1, k.inv2s2, k.q, &mut wy, &mut dy);
+        let npad = wx.len();
+        for (ry, &wyr) in wy[..=y1 - y0].iter().enumerate() {
+            let base = (y0 + ry - tg.oy) * stride + (x0 - tg.ox);
+            let row = &mut buf[base..base + npad];
+            for (b, &wxc) in row.iter_mut().zip(&wx) {
+                let a = (wxc * wyr - k.eps) * k.inv1me;
+                if COVERAGE {
+                    let a = if a < zero {
+                        zero
+                    } else if a > k.amax {
+                        k.amax
+                    } else {
+                        a
+                    };
+                    *b = *b * (one - a);
+                } else {
+                    *b = *b + if a < zero { zero } else { a };
+                }
+            }
+        }
+    }
+    let mut out = vec![zero; tg.pw * tg.ph];
+    for py in 0..tg.ph {
+        for px in 0..tg.pw {
+            let mut sum = zero;
+            for sy in 0..s {
+                let base = (py * s + sy) * stride + px * s;
+                for &b in &buf[base..base + s] {
+                    sum = sum + if COVERAGE { one - b } else { b };
+                }
+            }
+            out[py * tg.pw + px] = sum * k.norm;
+        }
+    }
+    out
+}
+
+/// Per-point `∂L/∂(u, v)` of one tile's points, in list order.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn tile_backward_impl<T: Float, const COVERAGE: bool>(
+    g: &Geometry,
+    k: &Consts<T>,
+    tg: &TileGeom,
+    s: usize,
+    width: usize,
+    list: &[u32],
+    uv: &[[T; 2]],
+    trans: &[T],
+    grad_image: &[T],
+) -> Vec<[f64; 2]> {
+    let stride = g.stride();
+    let zero = T::zero();
+    let one = T::one();
+    // H = ∂L/∂I_s, times T for coverage (∂I/∂α_j = T/(1 − α_j)); zero in the padding.
+    let mut h = vec![zero; g.tile_len()];
+    let (tx0, ty0) = (tg.ox / s, tg.oy / s);
+    for py in 0..tg.ph {
+        for px in 0..tg.pw {
+            let go = grad_image[(ty0 + py) * width + tx0 + px] * k.norm;
+            for sy in 0..s {
+                let base = (py * s + sy) * stride + px * s;
+                for i in base..base + s {
+                    h[i] = if COVERAGE { go * trans[i] } else { go };
+                }
+            }
+        }
+    }
+    let (mut wx, mut wy, mut dx, mut dy) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    list.iter()
+        .map(|&j| {
+            let p = uv[j as usize];
+            let Some((x0, x1, y0, y1)) = g.clip(p, tg) else {
+                return [0.0, 0.0];
+            };
+            weights(p[0], x0, x1, k.inv2s2, k.q, &mut wx, &mut dx);
+            weights(p[1], y0, y1, k.inv2s2, k.q, &mut wy, &mut dy);
+            let npad = wx.len();
+            let (mut gu, mut gv) = (zero, zero);
+            for (ry, (&wyr, &dyr)) in wy[..=y1 - y0].iter().zip(&dy).enumerate() {
+                let base = (y0 + ry - tg.oy) * stride + (x0 - tg.ox);
+                let hrow = &h[base..base + npad];
+                let mut su = [zero; LANES];
+                let mut sv = [zero; LANES];
+                for ((hc, wc), dc) in hrow
+                    .chunks_exact(LANES)
+                    .zip(wx.chunks_exact(LANES))
+                    .zip(dx.chunks_exact(LANES))
+                {
+                    for l in 0..LANES {
+                        let gr = wc[l] * wyr;
+                        let a = (gr - k.eps) * k.inv1me;
+                        let w = if COVERAGE {
+                            let w = hc[l] * gr / (one - a);
+                            if a > zero && a < k.amax { w } else { zero }
+                        } else if a > zero {
+                            hc[l] * gr
+                        } else {
+                            zero
+                        };
+                        su[l] = su[l] + w * dc[l];
+                        sv[l] = sv[l] + w;
+                    }
+                }
+                let (mut ru, mut rv) = (zero, zero);
+                for l in 0..LANES {
+                    ru = ru + su[l];
+                    rv = rv + sv[l];
+                }
+                gu = gu + ru;
+                gv = gv + rv * dyr;
+            }
+            [
+                (gu * k.dscale).to_f64().unwrap_or(0.0),
+                (gv * k.dscale).to_f64().unwrap_or(0.0),
+            ]
+        })
+        .collect()
+}
+
+/// Runs `$body` compiled for AVX2 when the CPU has it, else for the baseline target. Both
+/// builds execute the same floating-point operations in the same order (Rust never fuses
+/// multiply–adds on its own), so results are identical either way.
+macro_rules! dispatch {
+    ($name:ident, $generic:ident, ($($arg:ident : $ty:ty),*) -> $ret:ty) => {
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx2")]
+        fn $name<T: Float, const COVERAGE: bool>($($arg: $ty),*) -> $ret {
+            $generic::<T, COVERAGE>($($arg),*)
+        }
+    };
+}
+
+dispatch!(tile_forward_avx2, tile_forward_impl, (g: &Geometry, k: &Consts<T>, tg: &TileGeom, s: usize, list: &[u32], uv: &[[T; 2]], buf: &mut [T]) -> Vec<T>);
+dispatch!(tile_backward_avx2, tile_backward_impl, (g: &Geometry, k: &Consts<T>, tg: &TileGeom, s: usize, width: usize, list: &[u32], uv: &[[T; 2]], trans: &[T], grad_image: &[T]) -> Vec<[f64; 2]>);
+
+fn has_avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn tile_forward<T: Float, const COVERAGE: bool>(
+    avx2: bool,
+    g: &Geometry,
+    k: &Consts<T>,
+    tg: &TileGeom,
+    s: usize,
+    list: &[u32],
+    uv: &[[T; 2]],
+    buf: &mut [T],
+) -> Vec<T> {
+    #[cfg(target_arch = "x86_64")]
+    if avx2 {
+        // SAFETY: only reached when the CPU reports AVX2.
+        return unsafe { tile_forward_avx2::<T, COVERAGE>(g, k, tg, s, list, uv, buf) };
+    }
+    let _ = avx2;
+    tile_forward_impl::<T, COVERAGE>(g, k, tg, s, list, uv, buf)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn tile_backward<T: Float, const COVERAGE: bool>(
+    avx2: bool,
+    g: &Geometry,
+    k: &Consts<T>,
+    tg: &TileGeom,
+    s: usize,
+    width: usize,
+    list: &[u32],
+    uv: &[[T; 2]],
+    trans: &[T],
+    grad_image: &[T],
+) -> Vec<[f64; 2]> {
+    #[cfg(target_arch = "x86_64")]
+    if avx2 {
+        // SAFETY: only reached when the CPU reports AVX2.
+        return unsafe {
+            tile_backward_avx2::<T, COVERAGE>(g, k, tg, s, width, list, uv, trans, grad_image)
+        };
+    }
+    let _ = avx2;
+    tile_backward_impl::<T, COVERAGE>(g, k, tg, s, width, list, uv, trans, grad_image)
 }
 
 /// Forward: pooled image (row-major `height × width`) and the state for the reverse pass.
@@ -161,88 +463,37 @@ pub fn forward<T: Float + Send + Sync>(grid: &SplatGrid, uv: Vec<[T; 2]>) -> (Ve
     let g = grid.geometry();
     let (tile_start, entries) = bin(&uv, &g);
     let s = grid.supersample;
-    let ts2 = g.ts * g.ts;
+    let tl = g.tile_len();
     let coverage = grid.blend == Blend::Coverage;
-    let inv2s2 = c::<T>(0.5 / (grid.sigma * grid.sigma));
-    let eps = c::<T>(g.eps);
-    let inv1me = c::<T>(1.0 / (1.0 - g.eps));
-    let amax = c::<T>(grid.alpha_max);
+    let k = Consts::<T>::new(grid, &g);
     let n_tiles = g.tiles_x * g.tiles_y;
-    let mut trans = if coverage {
-        vec![T::one(); n_tiles * ts2]
-    } else {
-        Vec::new()
-    };
-    let mut acc_additive: Vec<T>;
-    // Each tile's supersampled buffer: the transmittance (coverage) or the density (additive).
-    let tile_bufs: &mut [T] = if coverage {
-        &mut trans
-    } else {
-        acc_additive = vec![T::zero(); n_tiles * ts2];
-        &mut acc_additive
-    };
-    let pooled: Vec<Vec<T>> = tile_bufs
-        .par_chunks_mut(ts2)
+    let avx2 = has_avx2();
+    // Each tile's supersampled buffer: transmittance (coverage, kept for the reverse pass)
+    // or density (additive, dropped after pooling).
+    let mut bufs = vec![if coverage { T::one() } else { T::zero() }; n_tiles * tl];
+    let pooled: Vec<Vec<T>> = bufs
+        .par_chunks_mut(tl)
         .enumerate()
         .map(|(t, buf)| {
-            let (tx, ty) = (t % g.tiles_x, t / g.tiles_x);
-            let (ox, oy) = (tx * g.ts, ty * g.ts);
-            let (mut wx, mut wy, mut dx, mut dy) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-            for &j in &entries[tile_start[t]..tile_start[t + 1]] {
-                let [u, v] = uv[j as usize];
-                let (uf, vf) = (u.to_f64().unwrap(), v.to_f64().unwrap());
-                let (Some((x0, x1)), Some((y0, y1))) = (footprint(uf, g.r, g.gw), footprint(vf, g.r, g.gh)) else {
-                    continue;
-                };
-                let (x0, x1) = (x0.max(ox), x1.min(ox + g.ts - 1));
-                let (y0, y1) = (y0.max(oy), y1.min(oy + g.ts - 1));
-                if x0 > x1 || y0 > y1 {
-                    continue;
-                }
-                weights(u, x0, x1, inv2s2, &mut wx, &mut dx);
-                weights(v, y0, y1, inv2s2, &mut wy, &mut dy);
-                for (ry, &wyr) in wy.iter().enumerate() {
-                    let row = (y0 + ry - oy) * g.ts + (x0 - ox);
-                    let row = &mut buf[row..row + wx.len()];
-                    if coverage {
-                        for (b, &wxc) in row.iter_mut().zip(&wx) {
-                            let a = ((wxc * wyr - eps) * inv1me).max(T::zero()).min(amax);
-                            *b = *b * (T::one() - a);
-                        }
-                    } else {
-                        for (b, &wxc) in row.iter_mut().zip(&wx) {
-                            *b = *b + ((wxc * wyr - eps) * inv1me).max(T::zero());
-                        }
-                    }
-                }
+            let tg = g.tile(t, grid);
+            let list = &entries[tile_start[t]..tile_start[t + 1]];
+            if coverage {
+                tile_forward::<T, true>(avx2, &g, &k, &tg, s, list, &uv, buf)
+            } else {
+                tile_forward::<T, false>(avx2, &g, &k, &tg, s, list, &uv, buf)
             }
-            // Pool the tile's s×s blocks into its output pixels.
-            let (pw, ph) = (TILE.min(grid.width - tx * TILE), TILE.min(grid.height - ty * TILE));
-            let norm = c::<T>(1.0 / (s * s) as f64);
-            let mut out = vec![T::zero(); pw * ph];
-            for py in 0..ph {
-                for px in 0..pw {
-                    let mut sum = T::zero();
-                    for sy in 0..s {
-                        let row = &buf[(py * s + sy) * g.ts + px * s..][..s];
-                        for &b in row {
-                            sum = sum + if coverage { T::one() - b } else { b };
-                        }
-                    }
-                    out[py * pw + px] = sum * norm;
-                }
-            }
-            out
         })
         .collect();
     let mut image = vec![T::zero(); grid.width * grid.height];
     for (t, out) in pooled.iter().enumerate() {
-        let (tx, ty) = (t % g.tiles_x, t / g.tiles_x);
-        let pw = TILE.min(grid.width - tx * TILE);
-        for (py, row) in out.chunks_exact(pw).enumerate() {
-            let start = (ty * TILE + py) * grid.width + tx * TILE;
-            image[start..start + pw].copy_from_slice(row);
+        let tg = g.tile(t, grid);
+        for (py, row) in out.chunks_exact(tg.pw).enumerate() {
+            let start = (tg.oy / s + py) * grid.width + tg.ox / s;
+            image[start..start + tg.pw].copy_from_slice(row);
         }
+    }
+    if !coverage {
+        bufs = Vec::new();
     }
     (
         image,
@@ -250,7 +501,7 @@ pub fn forward<T: Float + Send + Sync>(grid: &SplatGrid, uv: Vec<[T; 2]>) -> (Ve
             uv,
             tile_start,
             entries,
-            trans,
+            trans: bufs,
         },
     )
 }
@@ -259,15 +510,11 @@ pub fn forward<T: Float + Send + Sync>(grid: &SplatGrid, uv: Vec<[T; 2]>) -> (Ve
 pub fn backward<T: Float + Send + Sync>(grid: &SplatGrid, state: &SplatState<T>, grad_image: &[T]) -> Vec<[f64; 2]> {
     let g = grid.geometry();
     let s = grid.supersample;
-    let ts2 = g.ts * g.ts;
+    let tl = g.tile_len();
     let coverage = grid.blend == Blend::Coverage;
-    let inv2s2 = c::<T>(0.5 / (grid.sigma * grid.sigma));
-    let eps = c::<T>(g.eps);
-    let inv1me = c::<T>(1.0 / (1.0 - g.eps));
-    let amax = c::<T>(grid.alpha_max);
-    // dα/du = g_raw·(x + ½ − u)/(σ²(1 − ε)).
-    let dscale = c::<T>(1.0 / (grid.sigma * grid.sigma * (1.0 - g.eps)));
+    let k = Consts::<T>::new(grid, &g);
     let n_tiles = g.tiles_x * g.tiles_y;
+    let avx2 = has_avx2();
     let (uv, entries, tile_start) = (&state.uv, &state.entries, &state.tile_start);
     let partials: Vec<Vec<[f64; 2]>> = (0..n_tiles)
         .into_par_iter()
@@ -276,58 +523,13 @@ pub fn backward<T: Float + Send + Sync>(grid: &SplatGrid, state: &SplatState<T>,
             if list.is_empty() {
                 return Vec::new();
             }
-            let (tx, ty) = (t % g.tiles_x, t / g.tiles_x);
-            let (ox, oy) = (tx * g.ts, ty * g.ts);
-            // H = ∂L/∂I_s (·T for coverage, since ∂I/∂α_j = T/(1 − α_j)).
-            let norm = c::<T>(1.0 / (s * s) as f64);
-            let (pw, ph) = (TILE.min(grid.width - tx * TILE), TILE.min(grid.height - ty * TILE));
-            let mut h = vec![T::zero(); ts2];
-            for py in 0..ph * s {
-                for px in 0..pw * s {
-                    let go = grad_image[(ty * TILE + py / s) * grid.width + tx * TILE + px / s] * norm;
-                    let k = py * g.ts + px;
-                    h[k] = if coverage { go * state.trans[t * ts2 + k] } else { go };
-                }
+            let tg = g.tile(t, grid);
+            if coverage {
+                let trans = &state.trans[t * tl..(t + 1) * tl];
+                tile_backward::<T, true>(avx2, &g, &k, &tg, s, grid.width, list, uv, trans, grad_image)
+            } else {
+                tile_backward::<T, false>(avx2, &g, &k, &tg, s, grid.width, list, uv, &[], grad_image)
             }
-            let (mut wx, mut wy, mut dx, mut dy) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-            list.iter()
-                .map(|&j| {
-                    let [u, v] = uv[j as usize];
-                    let (uf, vf) = (u.to_f64().unwrap(), v.to_f64().unwrap());
-                    let (Some((x0, x1)), Some((y0, y1))) = (footprint(uf, g.r, g.gw), footprint(vf, g.r, g.gh)) else {
-                        return [0.0, 0.0];
-                    };
-                    let (x0, x1) = (x0.max(ox), x1.min(ox + g.ts - 1));
-                    let (y0, y1) = (y0.max(oy), y1.min(oy + g.ts - 1));
-                    if x0 > x1 || y0 > y1 {
-                        return [0.0, 0.0];
-                    }
-                    weights(u, x0, x1, inv2s2, &mut wx, &mut dx);
-                    weights(v, y0, y1, inv2s2, &mut wy, &mut dy);
-                    let (mut gu, mut gv) = (T::zero(), T::zero());
-                    for (ry, (&wyr, &dyr)) in wy.iter().zip(&dy).enumerate() {
-                        let row = (y0 + ry - oy) * g.ts + (x0 - ox);
-                        let hrow = &h[row..row + wx.len()];
-                        let (mut su, mut sv) = (T::zero(), T::zero());
-                        for ((&hc, &wxc), &dxc) in hrow.iter().zip(&wx).zip(&dx) {
-                            let gr = wxc * wyr;
-                            let a = (gr - eps) * inv1me;
-                            let w = if coverage {
-                                if a > T::zero() && a < amax { hc * gr / (T::one() - a) } else { T::zero() }
-                            } else if a > T::zero() {
-                                hc * gr
-                            } else {
-                                T::zero()
-                            };
-                            su = su + w * dxc;
-                            sv = sv + w;
-                        }
-                        gu = gu + su;
-                        gv = gv + sv * dyr;
-                    }
-                    [(gu * dscale).to_f64().unwrap(), (gv * dscale).to_f64().unwrap()]
-                })
-                .collect()
         })
         .collect();
     let mut guv = vec![[0.0f64; 2]; uv.len()];
