@@ -92,6 +92,17 @@ pub enum Error {
         #[source]
         source: std::io::Error,
     },
+    /// Network weights (e.g. LPIPS) that are missing, unreadable or not of the expected layout.
+    #[error("weights file {path}: {message}")]
+    Weights {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong and how to fix it.
+        message: String,
+    },
+    /// A tensor operation (candle) failed.
+    #[error("tensor operation failed: {0}")]
+    Tensor(#[from] candle_core::Error),
 }
 
 impl Error {
