@@ -8,6 +8,8 @@
 //!   classic and random codes;
 //! - [`chaos`]: deterministic, parallel chaos-game point generators;
 //! - [`render`]: the fast evaluation renderer (tens of millions of points at any zoom);
+//! - [`loss`]: image losses (multi-scale MSE, D-SSIM, moments, LPIPS) and the map
+//!   regulariser, each with its gradient, composable as candle tensors;
 //! - [`metrics`]: IoU, box-counting dimension and friends.
 //!
 //! Strategies live in the `ifslab-strategies` crate and the `ifslab` command in

@@ -1,6 +1,24 @@
 //! Evaluation metrics on rendered images and masks.
+//!
+//! Mask metrics: [`iou`], [`box_counting_dimension`]. Image metrics on row-major grey
+//! images in [0, 1]: [`psnr`], [`ssim`] (the loss module's zero-padded SSIM with an
+//! 11-pixel, σ = 1.5 window), [`lpips`] (AlexNet v0.1), their masked variants, and
+//! [`paper_metrics`], the chaotic-splatting paper's evaluation protocol: a 12.5% border crop
+//! (the margin the framing leaves around the attractor) and PSNR/SSIM on the pixels where
+//! either image is > 0, so the black background does not inflate the scores.
+//!
+//! ## References
+//! - Djeacoumar et al., *Learning Image Fractals Using Chaotic Differentiable Point
+//!   Splatting*, Eurographics 2025 (evaluation protocol).
+//! - Wang et al., *Image Quality Assessment: From Error Visibility to Structural
+//!   Similarity*, IEEE TIP 2004; Zhang et al., *The Unreasonable Effectiveness of Deep
+//!   Features as a Perceptual Metric*, CVPR 2018.
+
+use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
+use crate::loss::lpips::Lpips;
+use crate::loss::{Real, f64_of};
 
 /// Intersection over union of two masks of equal length; 1 when both are empty.
 pub fn iou(a: &[bool], b: &[bool]) -> Result<f64> {
@@ -69,6 +87,202 @@ pub fn box_counting_dimension(
     Ok((sxy / sxx, counts))
 }
 
+/// The fraction of each side the paper's evaluation crops away (the framing's margin).
+pub const EVAL_BORDER_FRACTION: f64 = 0.125;
+
+fn check_same_len<T, U>(pred: &[T], target: &[U]) -> Result<()> {
+    if pred.len() != target.len() {
+        return Err(Error::Shape(format!(
+            "images of {} and {} pixels",
+            pred.len(),
+            target.len()
+        )));
+    }
+    if pred.is_empty() {
+        return Err(Error::Empty("images with no pixels".into()));
+    }
+    Ok(())
+}
+
+fn psnr_from_mse(mse: f64, peak: f64) -> f64 {
+    if mse == 0.0 {
+        f64::INFINITY
+    } else {
+        10.0 * (peak * peak / mse).log10()
+    }
+}
+
+/// Peak signal-to-noise ratio in dB, `10·log10(peak² / MSE)`, for images with values in
+/// `[0, peak]`; `+∞` for identical images.
+pub fn psnr<T: Real>(pred: &[T], target: &[T], peak: f64) -> Result<f64> {
+    check_same_len(pred, target)?;
+    let se: f64 = pred
+        .iter()
+        .zip(target)
+        .map(|(&p, &t)| (f64_of(p) - f64_of(t)).powi(2))
+        .sum();
+    Ok(psnr_from_mse(se / pred.len() as f64, peak))
+}
+
+/// [`psnr`] over the pixels where `mask` is true.
+pub fn psnr_masked<T: Real>(pred: &[T], target: &[T], mask: &[bool], peak: f64) -> Result<f64> {
+    check_same_len(pred, target)?;
+    check_same_len(pred, mask)?;
+    let (mut se, mut n) = (0.0, 0usize);
+    for ((&p, &t), &m) in pred.iter().zip(target).zip(mask) {
+        if m {
+            se += (f64_of(p) - f64_of(t)).powi(2);
+            n += 1;
+        }
+    }
+    if n == 0 {
+        return Err(Error::Empty("the PSNR mask selects no pixel".into()));
+    }
+    Ok(psnr_from_mse(se / n as f64, peak))
+}
+
+/// Mean SSIM of two `width × height` images (see [`crate::loss::ssim()`]: 11-pixel Gaussian
+/// window, σ = 1.5, zero-padded borders); 1 for identical images.
+pub fn ssim<T: Real>(pred: &[T], target: &[T], width: usize, height: usize) -> Result<f64> {
+    crate::loss::ssim::ssim(pred, target, width, height)
+}
+
+/// SSIM averaged over the pixels where `mask` is true. The SSIM map is computed on the
+/// whole image first, so masked pixels still see their true neighbourhood.
+pub fn ssim_masked<T: Real>(
+    pred: &[T],
+    target: &[T],
+    width: usize,
+    height: usize,
+    mask: &[bool],
+) -> Result<f64> {
+    let map = crate::loss::ssim::ssim_map(pred, target, width, height)?;
+    check_same_len(&map, mask)?;
+    let (mut s, mut n) = (0.0, 0usize);
+    for (&v, &m) in map.iter().zip(mask) {
+        if m {
+            s += f64_of(v);
+            n += 1;
+        }
+    }
+    if n == 0 {
+        return Err(Error::Empty("the SSIM mask selects no pixel".into()));
+    }
+    Ok(s / n as f64)
+}
+
+/// LPIPS (AlexNet, v0.1 heads) between two `width × height` grey images; 0 for identical
+/// images. Load the network once with [`Lpips::load_default`] or [`Lpips::try_load_default`].
+pub fn lpips<T: Real + candle_core::WithDType>(
+    net: &Lpips,
+    pred: &[T],
+    target: &[T],
+    width: usize,
+    height: usize,
+) -> Result<f64> {
+    net.distance_images(pred, target, width, height)
+}
+
+/// The rectangle `(x0, y0, width, height)` left after cropping `fraction` of each side from
+/// every border (rounded to whole pixels).
+pub fn border_crop_rect(
+    width: usize,
+    height: usize,
+    fraction: f64,
+) -> Result<(usize, usize, usize, usize)> {
+    if !(0.0..0.5).contains(&fraction) {
+        return Err(Error::param(
+            "fraction",
+            format!("the border fraction must be in [0, 0.5), got {fraction}"),
+        ));
+    }
+    let x0 = (fraction * width as f64).round() as usize;
+    let y0 = (fraction * height as f64).round() as usize;
+    let (w, h) = (width.saturating_sub(2 * x0), height.saturating_sub(2 * y0));
+    if w == 0 || h == 0 {
+        return Err(Error::Empty(format!(
+            "cropping {fraction} of each side of a {width}×{height} image leaves no pixel"
+        )));
+    }
+    Ok((x0, y0, w, h))
+}
+
+/// The pixels of a row-major `width × height` image inside `rect = (x0, y0, w, h)`.
+pub fn crop<T: Copy>(img: &[T], width: usize, rect: (usize, usize, usize, usize)) -> Vec<T> {
+    let (x0, y0, w, h) = rect;
+    (y0..y0 + h)
+        .flat_map(|y| img[y * width + x0..y * width + x0 + w].iter().copied())
+        .collect()
+}
+
+/// Pixels where either image is above `threshold` (the paper: 0).
+pub fn foreground_mask<T: Real>(pred: &[T], target: &[T], threshold: f64) -> Vec<bool> {
+    pred.iter()
+        .zip(target)
+        .map(|(&p, &t)| f64_of(p) > threshold || f64_of(t) > threshold)
+        .collect()
+}
+
+/// Scores of a rendered image against its target under the paper's protocol.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ImageMetrics {
+    /// PSNR (dB) on the foreground pixels of the crop.
+    pub psnr: f64,
+    /// SSIM averaged over the foreground pixels of the crop.
+    pub ssim: f64,
+    /// LPIPS of the cropped images, when a network was given.
+    pub lpips: Option<f64>,
+    /// IoU of the `> 0` masks inside the crop.
+    pub iou: f64,
+    /// Number of foreground pixels the PSNR and SSIM averaged over.
+    pub foreground_pixels: usize,
+}
+
+/// The chaotic-splatting paper's evaluation: crop [`EVAL_BORDER_FRACTION`] of each side, then
+/// PSNR and SSIM over the pixels where either image is > 0 (the SSIM map is computed on the
+/// full image, then cropped and masked), IoU of the `> 0` masks, and LPIPS of the cropped
+/// images if `net` is given. Images are row-major, values in [0, 1].
+pub fn paper_metrics<T: Real + candle_core::WithDType>(
+    pred: &[T],
+    target: &[T],
+    width: usize,
+    height: usize,
+    net: Option<&Lpips>,
+) -> Result<ImageMetrics> {
+    crate::loss::check_pair(pred, target, width, height)?;
+    let rect = border_crop_rect(width, height, EVAL_BORDER_FRACTION)?;
+    let (p, t) = (crop(pred, width, rect), crop(target, width, rect));
+    let mask = foreground_mask(&p, &t, 0.0);
+    let foreground_pixels = mask.iter().filter(|&&m| m).count();
+    if foreground_pixels == 0 {
+        return Err(Error::Empty(
+            "both images are black inside the evaluation crop; nothing to score".into(),
+        ));
+    }
+    let map = crate::loss::ssim::ssim_map(pred, target, width, height)?;
+    let map = crop(&map, width, rect);
+    let ssim = map
+        .iter()
+        .zip(&mask)
+        .filter(|(_, m)| **m)
+        .map(|(&v, _)| f64_of(v))
+        .sum::<f64>()
+        / foreground_pixels as f64;
+    let pm: Vec<bool> = p.iter().map(|&v| f64_of(v) > 0.0).collect();
+    let tm: Vec<bool> = t.iter().map(|&v| f64_of(v) > 0.0).collect();
+    let lpips = match net {
+        Some(net) => Some(net.distance_images(&p, &t, rect.2, rect.3)?),
+        None => None,
+    };
+    Ok(ImageMetrics {
+        psnr: psnr_masked(&p, &t, &mask, 1.0)?,
+        ssim,
+        lpips,
+        iou: iou(&pm, &tm)?,
+        foreground_pixels,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -87,5 +301,57 @@ mod tests {
         }
         let (d, _) = box_counting_dimension(&m, 256, 256, 0, 6).unwrap();
         assert!((d - 1.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn psnr_of_a_known_error() {
+        // MSE = 0.01 ⇒ PSNR = 20 dB.
+        let t = vec![0.5f64; 100];
+        let p: Vec<f64> = t.iter().map(|v| v + 0.1).collect();
+        assert!((psnr(&p, &t, 1.0).unwrap() - 20.0).abs() < 1e-9);
+        assert_eq!(psnr(&t, &t, 1.0).unwrap(), f64::INFINITY);
+        let mut mask = vec![false; 100];
+        mask[3] = true;
+        assert!((psnr_masked(&p, &t, &mask, 1.0).unwrap() - 20.0).abs() < 1e-9);
+        assert!(psnr_masked(&p, &t, &[false; 100], 1.0).is_err());
+    }
+
+    #[test]
+    fn crop_takes_the_centre() {
+        let (w, h) = (16, 8);
+        let img: Vec<usize> = (0..w * h).collect();
+        let rect = border_crop_rect(w, h, EVAL_BORDER_FRACTION).unwrap();
+        assert_eq!(rect, (2, 1, 12, 6));
+        let c = crop(&img, w, rect);
+        assert_eq!(c.len(), 72);
+        assert_eq!(c[0], w + 2);
+        assert!(border_crop_rect(4, 4, 0.5).is_err());
+    }
+
+    #[test]
+    fn paper_metrics_ignore_the_border_and_the_background() {
+        let (w, h) = (64, 64);
+        let mut t = vec![0.0f64; w * h];
+        for y in 24..40 {
+            for x in 20..44 {
+                t[y * w + x] = 0.8;
+            }
+        }
+        // Garbage in the cropped border changes nothing.
+        let mut p = t.clone();
+        for v in p.iter_mut().take(w * 4) {
+            *v = 1.0;
+        }
+        let m = paper_metrics(&p, &t, w, h, None).unwrap();
+        assert_eq!(m.psnr, f64::INFINITY);
+        assert_eq!(m.iou, 1.0);
+        assert_eq!(m.foreground_pixels, 16 * 24);
+        assert!((m.ssim - ssim_masked(&t, &t, w, h, &vec![true; w * h]).unwrap()).abs() < 1e-12);
+        // An error on the foreground shows.
+        let mut q = t.clone();
+        q[30 * w + 30] = 0.0;
+        let m = paper_metrics(&q, &t, w, h, None).unwrap();
+        assert!(m.psnr.is_finite() && m.ssim < 1.0 && m.iou < 1.0);
+        assert!(paper_metrics(&vec![0.0; w * h], &vec![0.0; w * h], w, h, None).is_err());
     }
 }

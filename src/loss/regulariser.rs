@@ -1,0 +1,193 @@
+//! The chaotic-splatting paper's regulariser on the maps (not on the image).
+//!
+//! For maps `x ↦ M_i·x + b_i`, `i = 1 … n`, with singular values `σ₁ᵢ ≥ σ₂ᵢ` of `M_i`:
+//!
+//! `R = λ_s·(Σ_i (σ₁ᵢ² + σ₂ᵢ²) + Σ_i ‖b_i‖²) + λ_c·(1/n)·Σ_i ((σ₁ᵢ + 1)/(σ₂ᵢ + 1))²`
+//!
+//! with `λ_s = 1e-2` (weight decay on singular values and offsets: keeps the maps
+//! contractive and the attractor near the origin) and `λ_c = 1e-1` (pulls each map towards
+//! a similitude, whose condition number is 1).
+//!
+//! **Gradient** with respect to `M_i` and `b_i` (what [`Parameterisation::backward`] takes):
+//! `Σ_k σ_k² = ‖M‖_F²`, so the first term's gradient is `2λ_s·M` exactly, SVD-free; the
+//! offsets give `2λ_s·b`. For the condition term `f = ((σ₁ + 1)/(σ₂ + 1))²` we use
+//! `∂σ_k/∂M = u_k v_kᵀ` (`M = U·diag(σ)·Vᵀ`):
+//!
+//! `∂f/∂M = 2r/(σ₂ + 1) · u₁v₁ᵀ − 2r(σ₁ + 1)/(σ₂ + 1)² · u₂v₂ᵀ`, `r = (σ₁ + 1)/(σ₂ + 1)`.
+//!
+//! **Degenerate maps** (`σ₁ = σ₂`, e.g. a rotation-scaling or the zero matrix): the singular
+//! vectors are not unique and `f`, which uses max and min, has a kink. But `f ≥ 1` everywhere
+//! with equality exactly when `σ₁ = σ₂`, so such a map is a global minimiser of the condition
+//! term and `0` is a valid (the minimum-norm) subgradient: we return it whenever
+//! `σ₁ − σ₂ ≤ 1e-12·(1 + σ₁)`. Near-degenerate maps get the formula above, which stays
+//! bounded (`|∂f/∂σ_k| ≤ 2r²`) even though the individual `u_k v_kᵀ` turn.
+//!
+//! [`Parameterisation::backward`]: crate::model::param::Parameterisation::backward
+//!
+//! ## References
+//! - Djeacoumar et al., *Learning Image Fractals Using Chaotic Differentiable Point
+//!   Splatting*, Eurographics 2025 (the regulariser and its weights).
+
+use nalgebra::{Matrix2, Vector2};
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::model::affine::Affine2;
+
+/// Relative gap below which σ₁ = σ₂ is treated as degenerate.
+const DEGENERATE_GAP: f64 = 1e-12;
+
+/// The paper's map regulariser (see the module docs); also its config section.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Regulariser {
+    /// `λ_s`, weight of `Σσ² + Σ‖b‖²` (the paper: 1e-2).
+    pub scale_weight: f64,
+    /// `λ_c`, weight of the mean squared condition term (the paper: 1e-1).
+    pub condition_weight: f64,
+}
+
+impl Default for Regulariser {
+    fn default() -> Self {
+        Regulariser {
+            scale_weight: 1e-2,
+            condition_weight: 1e-1,
+        }
+    }
+}
+
+/// The SVD of a 2×2 matrix with singular values sorted, largest first.
+fn sorted_svd(m: &Matrix2<f64>) -> (f64, f64, Matrix2<f64>, Matrix2<f64>) {
+    let svd = m.svd(true, true);
+    // Both were requested, so both are present; the fallbacks keep this panic-free.
+    let u = svd.u.unwrap_or_else(Matrix2::identity);
+    let v = svd
+        .v_t
+        .map(|vt| vt.transpose())
+        .unwrap_or_else(Matrix2::identity);
+    let s = svd.singular_values;
+    if s[0] >= s[1] {
+        (s[0], s[1], u, v)
+    } else {
+        let swap = |a: Matrix2<f64>| Matrix2::from_columns(&[a.column(1), a.column(0)]);
+        (s[1], s[0], swap(u), swap(v))
+    }
+}
+
+impl Regulariser {
+    /// Checks that both weights are finite and non-negative.
+    pub fn validate(&self) -> Result<()> {
+        for (name, v) in [
+            ("scale_weight", self.scale_weight),
+            ("condition_weight", self.condition_weight),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::param(name, format!("must be ≥ 0, got {v}")));
+            }
+        }
+        Ok(())
+    }
+
+    fn check_maps(maps: &[Affine2]) -> Result<()> {
+        if maps.is_empty() {
+            return Err(Error::Empty(
+                "the regulariser needs at least one map".into(),
+            ));
+        }
+        if let Some(i) = maps.iter().position(|m| !m.is_finite()) {
+            let v = maps[i]
+                .coefficients()
+                .into_iter()
+                .find(|v| !v.is_finite())
+                .unwrap_or(f64::NAN);
+            return Err(Error::NonFinite {
+                what: "maps".into(),
+                location: format!("map {i}"),
+                value: v,
+            });
+        }
+        Ok(())
+    }
+
+    /// `R(maps)`.
+    pub fn value(&self, maps: &[Affine2]) -> Result<f64> {
+        self.validate()?;
+        Self::check_maps(maps)?;
+        let n = maps.len() as f64;
+        let (mut scale, mut cond) = (0.0, 0.0);
+        for map in maps {
+            let (s1, s2) = map.singular_values();
+            scale += map.m.norm_squared() + map.b.norm_squared();
+            cond += ((s1 + 1.0) / (s2 + 1.0)).powi(2);
+        }
+        Ok(self.scale_weight * scale + self.condition_weight * cond / n)
+    }
+
+    /// `(R(maps), ∂R/∂maps)`; each gradient [`Affine2`] holds `∂R/∂M` in `m` and `∂R/∂b` in `b`.
+    pub fn value_and_grad(&self, maps: &[Affine2]) -> Result<(f64, Vec<Affine2>)> {
+        let value = self.value(maps)?;
+        let n = maps.len() as f64;
+        let grads = maps
+            .iter()
+            .map(|map| {
+                let mut gm = map.m * (2.0 * self.scale_weight);
+                let gb: Vector2<f64> = map.b * (2.0 * self.scale_weight);
+                let (s1, s2, u, v) = sorted_svd(&map.m);
+                if s1 - s2 > DEGENERATE_GAP * (1.0 + s1) {
+                    let r = (s1 + 1.0) / (s2 + 1.0);
+                    let df1 = 2.0 * r / (s2 + 1.0);
+                    let df2 = -2.0 * r * (s1 + 1.0) / (s2 + 1.0).powi(2);
+                    let c = self.condition_weight / n;
+                    gm += (u.column(0) * v.column(0).transpose()) * (c * df1);
+                    gm += (u.column(1) * v.column(1).transpose()) * (c * df2);
+                }
+                Affine2 { m: gm, b: gb }
+            })
+            .collect();
+        Ok((value, grads))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn similitudes_pay_only_the_scale_term() {
+        // A rotation-scaling has σ₁ = σ₂ = s: condition term exactly 1, gradient 2λ_s·M.
+        let map = Affine2::similitude(0.5, 0.7, false, [0.2, -0.1]);
+        let reg = Regulariser::default();
+        let (v, g) = reg.value_and_grad(&[map]).unwrap();
+        let expected = 1e-2 * (2.0 * 0.25 + 0.05) + 1e-1;
+        assert!((v - expected).abs() < 1e-14, "{v} vs {expected}");
+        assert!((g[0].m - map.m * 2e-2).norm() < 1e-14);
+        assert!((g[0].b - map.b * 2e-2).norm() < 1e-14);
+    }
+
+    #[test]
+    fn zero_matrix_is_degenerate_not_nan() {
+        let (v, g) = Regulariser::default()
+            .value_and_grad(&[Affine2::new(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)])
+            .unwrap();
+        assert!((v - 0.1).abs() < 1e-15);
+        assert!(g[0].is_finite() && g[0].m.norm() == 0.0);
+    }
+
+    #[test]
+    fn bad_input_is_refused() {
+        let reg = Regulariser::default();
+        assert!(reg.value(&[]).is_err());
+        let nan = Affine2::new(f64::NAN, 0.0, 0.0, 0.5, 0.0, 0.0);
+        assert!(reg.value(&[nan]).unwrap_err().to_string().contains("map 0"));
+        let neg = Regulariser {
+            scale_weight: -1.0,
+            ..Default::default()
+        };
+        assert!(
+            neg.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("scale_weight")
+        );
+    }
+}
