@@ -1,6 +1,7 @@
 //! `ifslab`: render, sample and invert Iterated Function Systems from the command line.
 
 mod cmd;
+mod inversion;
 mod plot;
 mod progress;
 
@@ -22,6 +23,10 @@ enum Command {
     Sample(cmd::sample::Args),
     /// List the built-in codes.
     Codes,
+    /// Recover an IFS code from an image (differentiable splatting + a strategy).
+    Invert(cmd::invert::Args),
+    /// Run the inversion described by a config file.
+    Run(cmd::run::Args),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -30,5 +35,7 @@ fn main() -> anyhow::Result<()> {
         Command::Render(a) => cmd::render::run(a),
         Command::Sample(a) => cmd::sample::run(a),
         Command::Codes => cmd::codes::run(),
+        Command::Invert(a) => cmd::invert::run(a),
+        Command::Run(a) => cmd::run::run(a),
     }
 }

@@ -1,7 +1,9 @@
 //! One module per subcommand: its clap `Args` and a `run` function.
 
 pub mod codes;
+pub mod invert;
 pub mod render;
+pub mod run;
 pub mod sample;
 
 use std::path::Path;

@@ -148,33 +148,34 @@ fn bin<T: Float + Send + Sync>(uv: &[[T; 2]], g: &Geometry) -> (Vec<usize>, Vec<
 /// `LANES` partial sums combined in a fixed order.
 const LANES: usize = 8;
 
-/// Gaussian weights `exp(−(i + ½ − x)²/2σ²)` and offsets for pixels `lo..=hi`, padded with
-/// zero weights to a multiple of [`LANES`].
+/// Gaussian weights `exp(−(i + ½ − x)²/2σ²)` and offsets for pixels `lo..=hi` written to
+/// `w` and `d`, padded with zero weights to a multiple of [`LANES`]; returns the padded length.
 ///
 /// Two exponentials per row instead of one per pixel: with `d_{i+1} = d_i + 1`,
 /// `w_{i+1} = w_i·r_i` and `r_{i+1} = r_i·q`, where `r_i = exp(−(2d_i + 1)/2σ²)` and
 /// `q = exp(−1/σ²)`; over the ≤ 2·radius·σ + 1 pixels of a footprint this stays within a few
 /// ulps of the direct formula.
 #[inline(always)]
-fn weights<T: Float>(x: T, lo: usize, hi: usize, inv2s2: T, q: T, w: &mut Vec<T>, d: &mut Vec<T>) {
-    w.clear();
-    d.clear();
+fn weights<T: Float>(x: T, lo: usize, hi: usize, inv2s2: T, q: T, w: &mut [T], d: &mut [T]) -> usize {
+    let n = hi - lo + 1;
+    let npad = n.div_ceil(LANES) * LANES;
     let half = c::<T>(0.5);
     let two = c::<T>(2.0);
     let mut dx = T::from(lo).unwrap() + half - x;
     let mut wi = (-(dx * dx) * inv2s2).exp();
     let mut r = (-(two * dx + T::one()) * inv2s2).exp();
-    for _ in lo..=hi {
-        d.push(dx);
-        w.push(wi);
+    for (wk, dk) in w[..n].iter_mut().zip(&mut d[..n]) {
+        *dk = dx;
+        *wk = wi;
         wi = wi * r;
         r = r * q;
         dx = dx + T::one();
     }
-    while w.len() % LANES != 0 {
-        w.push(T::zero());
-        d.push(T::zero());
+    for k in n..npad {
+        w[k] = T::zero();
+        d[k] = T::zero();
     }
+    npad
 }
 
 /// Constants of the footprint, in the working precision.
@@ -224,6 +225,11 @@ impl Geometry {
         self.ts * self.stride()
     }
 
+    /// Length of the weight buffers: the widest footprint, padded.
+    fn footprint_buf(&self) -> usize {
+        (2.0 * self.r).ceil() as usize + 2 + LANES
+    }
+
     fn tile(&self, t: usize, grid: &SplatGrid) -> TileGeom {
         let (tx, ty) = (t % self.tiles_x, t / self.tiles_x);
         TileGeom {
@@ -259,19 +265,20 @@ fn tile_forward_impl<T: Float, const COVERAGE: bool>(
 ) -> Vec<T> {
     let stride = g.stride();
     let (zero, one) = (T::zero(), T::one());
-    let (mut wx, mut wy, mut dx, mut dy) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let nb = g.footprint_buf();
+    let (mut wx, mut wy, mut dx, mut dy) = (vec![zero; nb], vec![zero; nb], vec![zero; nb], vec![zero; nb]);
     for &j in list {
         let p = uv[j as usize];
         let Some((x0, x1, y0, y1)) = g.clip(p, tg) else {
             continue;
         };
-        weights(p[0], x0, x1, k.inv2s2, k.q, &mut wx, &mut dx);
+        let npad = weights(p[0], x0, x1, k.inv2s2, k.q, &mut wx, &mut dx);
         weights(p[1], y0, y1, k.inv2s2, k.q, &mut wy, &mut dy);
-        let npad = wx.len();
+        let wx = &wx[..npad];
         for (ry, &wyr) in wy[..=y1 - y0].iter().enumerate() {
             let base = (y0 + ry - tg.oy) * stride + (x0 - tg.ox);
             let row = &mut buf[base..base + npad];
-            for (b, &wxc) in row.iter_mut().zip(&wx) {
+            for (b, &wxc) in row.iter_mut().zip(wx) {
                 let a = (wxc * wyr - k.eps) * k.inv1me;
                 if COVERAGE {
                     let a = if a < zero {
@@ -320,7 +327,6 @@ fn tile_backward_impl<T: Float, const COVERAGE: bool>(
 ) -> Vec<[f64; 2]> {
     let stride = g.stride();
     let zero = T::zero();
-    let one = T::one();
     // H = ∂L/∂I_s, times T for coverage (∂I/∂α_j = T/(1 − α_j)); zero in the padding.
     let mut h = vec![zero; g.tile_len()];
     let (tx0, ty0) = (tg.ox / s, tg.oy / s);
@@ -335,56 +341,87 @@ fn tile_backward_impl<T: Float, const COVERAGE: bool>(
             }
         }
     }
-    let (mut wx, mut wy, mut dx, mut dy) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    list.iter()
-        .map(|&j| {
-            let p = uv[j as usize];
-            let Some((x0, x1, y0, y1)) = g.clip(p, tg) else {
-                return [0.0, 0.0];
-            };
-            weights(p[0], x0, x1, k.inv2s2, k.q, &mut wx, &mut dx);
-            weights(p[1], y0, y1, k.inv2s2, k.q, &mut wy, &mut dy);
-            let npad = wx.len();
-            let (mut gu, mut gv) = (zero, zero);
-            for (ry, (&wyr, &dyr)) in wy[..=y1 - y0].iter().zip(&dy).enumerate() {
-                let base = (y0 + ry - tg.oy) * stride + (x0 - tg.ox);
-                let hrow = &h[base..base + npad];
-                let mut su = [zero; LANES];
-                let mut sv = [zero; LANES];
-                for ((hc, wc), dc) in hrow
-                    .chunks_exact(LANES)
-                    .zip(wx.chunks_exact(LANES))
-                    .zip(dx.chunks_exact(LANES))
-                {
-                    for l in 0..LANES {
-                        let gr = wc[l] * wyr;
-                        let a = (gr - k.eps) * k.inv1me;
-                        let w = if COVERAGE {
-                            let w = hc[l] * gr / (one - a);
-                            if a > zero && a < k.amax { w } else { zero }
-                        } else if a > zero {
-                            hc[l] * gr
-                        } else {
-                            zero
-                        };
-                        su[l] = su[l] + w * dc[l];
-                        sv[l] = sv[l] + w;
-                    }
-                }
-                let (mut ru, mut rv) = (zero, zero);
-                for l in 0..LANES {
-                    ru = ru + su[l];
-                    rv = rv + sv[l];
-                }
-                gu = gu + ru;
-                gv = gv + rv * dyr;
+    let nb = g.footprint_buf();
+    let (mut wx, mut wy, mut dx, mut dy) = (vec![zero; nb], vec![zero; nb], vec![zero; nb], vec![zero; nb]);
+    // A plain loop (no closure) so the body inherits the caller's target features.
+    let mut out = Vec::with_capacity(list.len());
+    for &j in list {
+        let p = uv[j as usize];
+        let Some((x0, x1, y0, y1)) = g.clip(p, tg) else {
+            out.push([0.0, 0.0]);
+            continue;
+        };
+        let npad = weights(p[0], x0, x1, k.inv2s2, k.q, &mut wx, &mut dx);
+        weights(p[1], y0, y1, k.inv2s2, k.q, &mut wy, &mut dy);
+        let (gu, gv) = footprint_grad::<T, COVERAGE>(
+            k,
+            &h,
+            (y0 - tg.oy) * stride + (x0 - tg.ox),
+            stride,
+            &wx[..npad],
+            &dx[..npad],
+            &wy[..=y1 - y0],
+            &dy[..=y1 - y0],
+        );
+        out.push([
+            (gu * k.dscale).to_f64().unwrap_or(0.0),
+            (gv * k.dscale).to_f64().unwrap_or(0.0),
+        ]);
+    }
+    out
+}
+
+/// `Σ_p H(p)·∂α/∂(u, v)` over one point's footprint (without the `1/σ²(1 − ε)` factor).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn footprint_grad<T: Float, const COVERAGE: bool>(
+    k: &Consts<T>,
+    h: &[T],
+    base: usize,
+    stride: usize,
+    wx: &[T],
+    dx: &[T],
+    wy: &[T],
+    dy: &[T],
+) -> (T, T) {
+    let zero = T::zero();
+    let one = T::one();
+    let npad = wx.len();
+    let (mut gu, mut gv) = (zero, zero);
+    for (ry, (&wyr, &dyr)) in wy.iter().zip(dy).enumerate() {
+        let row = base + ry * stride;
+        let hrow = &h[row..row + npad];
+        let mut su = [zero; LANES];
+        let mut sv = [zero; LANES];
+        for ((hc, wc), dc) in hrow
+            .chunks_exact(LANES)
+            .zip(wx.chunks_exact(LANES))
+            .zip(dx.chunks_exact(LANES))
+        {
+            for l in 0..LANES {
+                let gr = wc[l] * wyr;
+                let a = (gr - k.eps) * k.inv1me;
+                let w = if COVERAGE {
+                    let w = hc[l] * gr / (one - a);
+                    if a > zero && a < k.amax { w } else { zero }
+                } else if a > zero {
+                    hc[l] * gr
+                } else {
+                    zero
+                };
+                su[l] = su[l] + w * dc[l];
+                sv[l] = sv[l] + w;
             }
-            [
-                (gu * k.dscale).to_f64().unwrap_or(0.0),
-                (gv * k.dscale).to_f64().unwrap_or(0.0),
-            ]
-        })
-        .collect()
+        }
+        let (mut ru, mut rv) = (zero, zero);
+        for l in 0..LANES {
+            ru = ru + su[l];
+            rv = rv + sv[l];
+        }
+        gu = gu + ru;
+        gv = gv + rv * dyr;
+    }
+    (gu, gv)
 }
 
 /// Runs `$body` compiled for AVX2 when the CPU has it, else for the baseline target. Both

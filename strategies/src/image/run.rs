@@ -7,7 +7,10 @@ use std::time::Instant;
 use argmin::core::observers::{Observe, ObserverMode};
 use argmin::core::{Error as ArgminError, Executor, KV, Solver, State};
 use ifslab::model::random::sample_code;
-use ifslab::model::{Affine2, Parameterisation};
+use ifslab::model::{Affine2, IfsCode, Parameterisation, library};
+use rand::{Rng, SeedableRng};
+use rand_distr::StandardNormal;
+use rand_xoshiro::Xoshiro256PlusPlus;
 use serde::{Serialize, de::DeserializeOwned};
 
 use crate::adam::Adam;
@@ -43,22 +46,44 @@ pub struct InversionOutcome {
     pub log: PathBuf,
 }
 
-/// The starting θ: an Anderson–Farrell random code of `model.maps` maps (seeded by
-/// `model.init_seed`, else the run's seed), offsets scaled by 0.9 into the SVD
-/// parameterisation's open square.
+/// The starting θ: the code `model.init_code` if given, else an Anderson–Farrell random code
+/// of `model.maps` maps (seeded by `model.init_seed`, else the run's seed) with offsets scaled
+/// by 0.9 into the SVD parameterisation's open square; plus `model.init_noise` Gaussian noise.
 pub fn initial_theta(cfg: &InversionConfig, param: &dyn Parameterisation) -> Result<Vec<f64>> {
     let n = cfg.model.maps;
     let seed = cfg.model.init_seed.unwrap_or(cfg.seed);
-    let maps: Vec<Affine2> = if n >= 2 {
-        sample_code(n, seed)?.maps
-    } else {
-        vec![Affine2::new(0.5, 0.0, 0.0, 0.5, 0.1, 0.1)]
+    let maps: Vec<Affine2> = match &cfg.model.init_code {
+        Some(spec) => {
+            let code = if std::path::Path::new(spec).is_file() {
+                IfsCode::load(spec)?
+            } else {
+                library::builtin(spec)?
+            };
+            let maps = code.affine2()?;
+            if maps.len() != n {
+                return Err(Error::InvalidInput(format!(
+                    "config field `model.init_code`: `{spec}` has {} maps but `model.maps` is {n}",
+                    maps.len()
+                )));
+            }
+            maps
+        }
+        None if n >= 2 => sample_code(n, seed)?
+            .maps
+            .into_iter()
+            .map(|m| Affine2 { m: m.m, b: m.b * 0.9 })
+            .collect(),
+        None => vec![Affine2::new(0.5, 0.0, 0.0, 0.5, 0.1, 0.1)],
     };
-    let maps: Vec<Affine2> = maps
-        .into_iter()
-        .map(|m| Affine2 { m: m.m, b: m.b * 0.9 })
-        .collect();
-    Ok(param.encode(&maps)?)
+    let mut theta = param.encode(&maps)?;
+    if cfg.model.init_noise > 0.0 {
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(ifslab::chaos::mix_seed(seed, u64::MAX));
+        for t in theta.iter_mut() {
+            *t += cfg.model.init_noise * rng.sample::<f64, _>(StandardNormal);
+        }
+        param.project(&mut theta);
+    }
+    Ok(theta)
 }
 
 /// Lets a boxed observer be handed to argmin's executor.
