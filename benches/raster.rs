@@ -1,1 +1,126 @@
-fn main() {}
+//! Evaluation-render throughput: a 10-map random code, 50M points into 1024² with 16×
+//! binary supersampling (the chaotic-splatting paper's ground-truth setting).
+//!
+//! Three measurements in the same run:
+//! - `render`: the streaming renderer as shipped;
+//! - `chaos_only`: the same trajectories without touching memory (RNG + maps), the floor;
+//! - `baseline_store_then_raster`: the straightforward pipeline — store every point, then
+//!   draw them into a byte-per-sub-pixel 16384² buffer and box-downsample — at 1/10 of the
+//!   points (its buffer alone is 256 MiB), reported per point for comparison.
+
+use std::hint::black_box;
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use ifslab::chaos::{ChaosGame, MapSampler, Trajectory};
+use ifslab::model::IfsCode;
+use ifslab::model::random::sample_code;
+use ifslab::render::{RenderConfig, View, render};
+use rayon::prelude::*;
+
+const POINTS: u64 = 50_000_000;
+
+fn setup() -> (Vec<ifslab::model::Affine2>, Vec<f64>) {
+    let s = sample_code(10, 3).unwrap();
+    let probs = IfsCode::from_affine2(None, &s.maps)
+        .unwrap()
+        .evaluation_probabilities()
+        .unwrap();
+    (s.maps, probs)
+}
+
+fn bench_render(c: &mut Criterion) {
+    let (maps, probs) = setup();
+    let cfg = RenderConfig {
+        width: 1024,
+        height: 1024,
+        points: POINTS,
+        supersample: 16,
+        seed: 1,
+        ..RenderConfig::default()
+    };
+    // Fix the window once so every variant measures drawing, not the pilot run.
+    let window = render(
+        &maps,
+        &probs,
+        &RenderConfig {
+            points: 10_000,
+            ..cfg.clone()
+        },
+        None,
+    )
+    .unwrap()
+    .stats
+    .window;
+    let cfg = RenderConfig {
+        view: View::Window(window),
+        ..cfg
+    };
+    let mut g = c.benchmark_group("eval_render_10maps_1024px_16x");
+    g.sample_size(10);
+    g.throughput(Throughput::Elements(POINTS));
+    g.bench_function("render", |b| {
+        b.iter(|| black_box(render(&maps, &probs, &cfg, None).unwrap().values.len()))
+    });
+    let sampler = MapSampler::new(&probs).unwrap();
+    g.bench_function("chaos_only", |b| {
+        b.iter(|| {
+            let t = 1024u64;
+            let per = POINTS / t;
+            let s: f64 = (0..t)
+                .into_par_iter()
+                .map(|i| {
+                    let mut tr = Trajectory::new(&maps, &sampler, 1, i, 1.0);
+                    let mut acc = 0.0;
+                    for _ in 0..per {
+                        let p = tr.step();
+                        acc += p[0];
+                    }
+                    acc
+                })
+                .sum();
+            black_box(s)
+        })
+    });
+    let n_base = POINTS / 10;
+    g.throughput(Throughput::Elements(n_base));
+    g.bench_function("baseline_store_then_raster_5M", |b| {
+        b.iter(|| {
+            let game = ChaosGame {
+                trajectories: 1024,
+                length: (n_base / 1024) as usize + 100,
+                warmup: 100,
+                start_half_width: 1.0,
+                seed: 1,
+            };
+            let pts = game.generate(&maps, &probs).unwrap();
+            let (w, s) = (1024usize, 16usize);
+            let big = w * s;
+            let mut buf = vec![0u8; big * big];
+            let size = window.size();
+            for p in &pts.data {
+                let fx = (p[0] - window.min[0]) / size[0] * big as f64;
+                let fy = (window.max[1] - p[1]) / size[1] * big as f64;
+                if fx >= 0.0 && fy >= 0.0 && fx < big as f64 && fy < big as f64 {
+                    buf[fy as usize * big + fx as usize] = 1;
+                }
+            }
+            let out: Vec<f32> = (0..w * w)
+                .into_par_iter()
+                .map(|i| {
+                    let (py, px) = (i / w, i % w);
+                    let mut n = 0u32;
+                    for sy in 0..s {
+                        let row = &buf[(py * s + sy) * big + px * s..][..s];
+                        n += row.iter().map(|&v| v as u32).sum::<u32>();
+                    }
+                    n as f32 / (s * s) as f32
+                })
+                .collect();
+            black_box(out.len())
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench_render);
+criterion_main!(benches);

@@ -47,7 +47,7 @@ pub enum Error {
     },
     /// A trajectory of the chaos game left every bound (a non-finite point).
     #[error(
-        "trajectory {trajectory} diverged at step {step} (point became non-finite); \
+        "trajectory {trajectory} diverged at step {step} (point became non-finite or left ±1e100); \
          the code is not contractive enough to have an attractor"
     )]
     Divergent {

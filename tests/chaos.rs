@@ -109,5 +109,8 @@ fn divergent_trajectories_are_reported() {
         }),
         ..RenderConfig::default()
     };
-    assert!(matches!(render(&maps, &probs, &cfg, None), Err(Error::Divergent { .. })));
+    assert!(matches!(
+        render(&maps, &probs, &cfg, None),
+        Err(Error::Divergent { .. })
+    ));
 }

@@ -123,29 +123,57 @@ fn each_kind_of_bad_file_gets_its_error() {
     parse(&doc(GOOD_MAP, "")).unwrap();
 
     // Not JSON at all.
-    assert!(matches!(parse("this is not json"), Err(Error::Parse { .. })));
+    assert!(matches!(
+        parse("this is not json"),
+        Err(Error::Parse { .. })
+    ));
     // Unknown field (a typo) is refused, not ignored.
-    assert!(matches!(parse(&doc(GOOD_MAP, r#", "probabilties": [1.0]"#)), Err(Error::Parse { .. })));
+    assert!(matches!(
+        parse(&doc(GOOD_MAP, r#", "probabilties": [1.0]"#)),
+        Err(Error::Parse { .. })
+    ));
     // NaN and infinity, as Python's json module writes them.
-    let nan = doc(r#"{"matrix": [[NaN, 0.0], [0.0, 0.5]], "offset": [0.0, 0.0]}"#, "");
+    let nan = doc(
+        r#"{"matrix": [[NaN, 0.0], [0.0, 0.5]], "offset": [0.0, 0.0]}"#,
+        "",
+    );
     match parse(&nan) {
-        Err(Error::NonFinite { location, .. }) => assert!(location.contains("line 1"), "{location}"),
+        Err(Error::NonFinite { location, .. }) => {
+            assert!(location.contains("line 1"), "{location}")
+        }
         other => panic!("expected NonFinite, got {other:?}"),
     }
-    let inf = doc(r#"{"matrix": [[0.5, 0.0], [0.0, 0.5]], "offset": [1e999, 0.0]}"#, "");
+    let inf = doc(
+        r#"{"matrix": [[0.5, 0.0], [0.0, 0.5]], "offset": [1e999, 0.0]}"#,
+        "",
+    );
     assert!(matches!(parse(&inf), Err(Error::NonFinite { .. })));
     // Wrong lengths.
-    let short_row = doc(r#"{"matrix": [[0.5], [0.0, 0.5]], "offset": [0.0, 0.0]}"#, "");
+    let short_row = doc(
+        r#"{"matrix": [[0.5], [0.0, 0.5]], "offset": [0.0, 0.0]}"#,
+        "",
+    );
     assert!(matches!(parse(&short_row), Err(Error::Shape(m)) if m.contains("map 0")));
-    let long_offset = doc(r#"{"matrix": [[0.5, 0.0], [0.0, 0.5]], "offset": [0.0, 0.0, 1.0]}"#, "");
+    let long_offset = doc(
+        r#"{"matrix": [[0.5, 0.0], [0.0, 0.5]], "offset": [0.0, 0.0, 1.0]}"#,
+        "",
+    );
     assert!(matches!(parse(&long_offset), Err(Error::Shape(m)) if m.contains("offset")));
     // Probabilities: wrong count, wrong sum, negative.
     let two = format!("{GOOD_MAP}, {GOOD_MAP}");
-    assert!(matches!(parse(&doc(&two, r#", "probabilities": [1.0]"#)), Err(Error::Probabilities(_))));
-    assert!(matches!(parse(&doc(&two, r#", "probabilities": [0.5, 0.6]"#)), Err(Error::Probabilities(m)) if m.contains("sum")));
-    assert!(matches!(parse(&doc(&two, r#", "probabilities": [1.5, -0.5]"#)), Err(Error::Probabilities(m)) if m.contains("negative")));
+    assert!(matches!(
+        parse(&doc(&two, r#", "probabilities": [1.0]"#)),
+        Err(Error::Probabilities(_))
+    ));
+    assert!(
+        matches!(parse(&doc(&two, r#", "probabilities": [0.5, 0.6]"#)), Err(Error::Probabilities(m)) if m.contains("sum"))
+    );
+    assert!(
+        matches!(parse(&doc(&two, r#", "probabilities": [1.5, -0.5]"#)), Err(Error::Probabilities(m)) if m.contains("negative"))
+    );
     // Non-contractive map: names the map and its largest singular value.
-    let big = format!(r#"{GOOD_MAP}, {{"matrix": [[1.2, 0.0], [0.0, 0.3]], "offset": [0.0, 0.0]}}"#);
+    let big =
+        format!(r#"{GOOD_MAP}, {{"matrix": [[1.2, 0.0], [0.0, 0.3]], "offset": [0.0, 0.0]}}"#);
     match parse(&doc(&big, "")) {
         Err(Error::NonContractive { index, sigma_max }) => {
             assert_eq!(index, 1);
@@ -161,7 +189,13 @@ fn each_kind_of_bad_file_gets_its_error() {
     let tagged = doc(GOOD_MAP, "").replace("ifslab-code/1", "something-else");
     assert!(matches!(parse(&tagged), Err(Error::Shape(m)) if m.contains("format")));
     // Degenerate framing.
-    assert!(parse(&doc(GOOD_MAP, r#", "framing": {"min": [0, 0], "max": [0, 1]}"#)).is_err());
+    assert!(
+        parse(&doc(
+            GOOD_MAP,
+            r#", "framing": {"min": [0, 0], "max": [0, 1]}"#
+        ))
+        .is_err()
+    );
     // A missing file names the file.
     match IfsCode::load("/nonexistent/code.json") {
         Err(e @ Error::Io { .. }) => assert!(e.to_string().contains("/nonexistent/code.json")),
@@ -173,7 +207,10 @@ fn each_kind_of_bad_file_gets_its_error() {
 fn three_dimensional_codes_are_first_class() {
     let t = library::builtin("tetrahedron").unwrap();
     assert_eq!(t.dim(), 3);
-    assert!(t.affine2().is_err(), "a 3-D code must refuse to become 2-D maps");
+    assert!(
+        t.affine2().is_err(),
+        "a 3-D code must refuse to become 2-D maps"
+    );
     let back = IfsCode::from_json(&t.to_json(), Path::new("mem")).unwrap();
     assert_eq!(back, t);
 }

@@ -70,12 +70,23 @@ fn fern_covers_its_known_region() {
     }
     let (ex0, ey1) = to_px(-2.182, 0.0);
     let (ex1, ey0) = to_px(2.6558, 9.9983);
-    for (got, want, what) in [(xmin, ex0, "left"), (xmax, ex1, "right"), (ymin, ey0, "top"), (ymax, ey1, "bottom")] {
-        assert!(got.abs_diff(want) <= 2, "{what} edge at pixel {got}, expected {want}");
+    for (got, want, what) in [
+        (xmin, ex0, "left"),
+        (xmax, ex1, "right"),
+        (ymin, ey0, "top"),
+        (ymax, ey1, "bottom"),
+    ] {
+        assert!(
+            got.abs_diff(want) <= 2,
+            "{what} edge at pixel {got}, expected {want}"
+        );
     }
     // The fern is leafy, not a blob and not dust: it covers a known share of its box.
     let frac = covered as f64 / ((xmax - xmin + 1) * (ymax - ymin + 1)) as f64;
-    assert!(frac > 0.2 && frac < 0.5, "fern covers {frac:.3} of its bounding box");
+    assert!(
+        frac > 0.2 && frac < 0.5,
+        "fern covers {frac:.3} of its bounding box"
+    );
 }
 
 #[test]
@@ -91,13 +102,17 @@ fn fitted_framing_uses_75_percent_of_the_frame() {
     );
     // The triangle is 1 wide: the window must be 1 / 0.75 wide.
     let s = r.stats.window.size();
-    assert!((s[0] - 1.0 / 0.75).abs() < 1e-3, "window width {}", s[0]);
+    assert!((s[0] - 1.0 / 0.75).abs() < 1e-6, "window width {}", s[0]);
     // Nothing is drawn in the 12.5% border.
     let border = 200 / 8 - 1;
     for row in 0..200 {
         for c in 0..200 {
             if row < border || row >= 200 - border || c < border || c >= 200 - border {
-                assert_eq!(r.values[row * 200 + c], 0.0, "pixel ({c}, {row}) in the border");
+                assert_eq!(
+                    r.values[row * 200 + c],
+                    0.0,
+                    "pixel ({c}, {row}) in the border"
+                );
             }
         }
     }
@@ -114,8 +129,17 @@ fn zoom_views_discard_outside_points_and_meet_hit_targets() {
     };
     let full = render_builtin("sierpinski", &base);
     // Zoom 8× on the bottom-left corner of the triangle (a fixed point on the attractor).
-    let zoom = Zoom { factor: 8.0, center: Some([0.05, 0.05]) };
-    let zoomed = render_builtin("sierpinski", &RenderConfig { zoom: Some(zoom), ..base.clone() });
+    let zoom = Zoom {
+        factor: 8.0,
+        center: Some([0.05, 0.05]),
+    };
+    let zoomed = render_builtin(
+        "sierpinski",
+        &RenderConfig {
+            zoom: Some(zoom),
+            ..base.clone()
+        },
+    );
     let s = zoomed.stats.window.size();
     let fs = full.stats.window.size();
     assert!((s[0] - fs[0] / 8.0).abs() < 1e-12);
@@ -128,14 +152,21 @@ fn zoom_views_discard_outside_points_and_meet_hit_targets() {
     let want = 300_000;
     let hit = render_builtin(
         "sierpinski",
-        &RenderConfig { zoom: Some(zoom), min_hits: want, ..base.clone() },
+        &RenderConfig {
+            zoom: Some(zoom),
+            min_hits: want,
+            ..base.clone()
+        },
     );
     assert!(hit.stats.points_in_window >= want);
     assert!(hit.stats.rounds > 1);
     // More hits, same window: at least as much is covered, and what 1 round drew is kept.
     let a = zoomed.mask(0.0);
     let b = hit.mask(0.0);
-    assert!(a.iter().zip(&b).all(|(x, y)| !x || *y), "round 1's points must stay drawn");
+    assert!(
+        a.iter().zip(&b).all(|(x, y)| !x || *y),
+        "round 1's points must stay drawn"
+    );
     assert!(iou(&a, &b).unwrap() > 0.5);
 }
 
@@ -153,7 +184,14 @@ fn supersampled_coverage_is_fractional_and_consistent() {
     let lit: Vec<f32> = r.values.iter().copied().filter(|&v| v > 0.0).collect();
     assert!(!lit.is_empty());
     let mean = lit.iter().sum::<f32>() / lit.len() as f32;
-    assert!(mean > 0.02 && mean < 0.6, "mean coverage of lit pixels {mean}");
+    assert!(
+        mean > 0.02 && mean < 0.6,
+        "mean coverage of lit pixels {mean}"
+    );
     // Values are multiples of 1/256.
-    assert!(r.values.iter().all(|v| ((v * 256.0) - (v * 256.0).round()).abs() < 1e-3));
+    assert!(
+        r.values
+            .iter()
+            .all(|v| ((v * 256.0) - (v * 256.0).round()).abs() < 1e-3)
+    );
 }

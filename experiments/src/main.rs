@@ -1,6 +1,7 @@
 //! `ifslab`: render, sample and invert Iterated Function Systems from the command line.
 
 mod cmd;
+mod inversion;
 mod plot;
 mod progress;
 
@@ -26,6 +27,10 @@ enum Command {
     FitPoints(cmd::fit_points::Args),
     /// Fractal-coding texture upsampling: encode, upsample, reproduce the paper.
     Texture(cmd::texture::Args),
+    /// Recover an IFS code from an image (differentiable splatting + a strategy).
+    Invert(cmd::invert::Args),
+    /// Run the inversion described by a config file.
+    Run(cmd::run::Args),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -36,5 +41,7 @@ fn main() -> anyhow::Result<()> {
         Command::Codes => cmd::codes::run(),
         Command::FitPoints(a) => cmd::fit_points::run(a),
         Command::Texture(a) => cmd::texture::run(a),
+        Command::Invert(a) => cmd::invert::run(a),
+        Command::Run(a) => cmd::run::run(a),
     }
 }

@@ -10,6 +10,16 @@ use crate::chaos::sampler::MapSampler;
 use crate::error::{Error, Result};
 use crate::model::affine::{AffineN, Map2};
 
+/// A point farther than this from the origin has left every attractor an affine IFS can
+/// have: its trajectory is reported as divergent.
+pub const DIVERGENCE_BOUND: f64 = 1e100;
+
+/// Whether a point is still finite and within [`DIVERGENCE_BOUND`].
+#[inline(always)]
+pub fn is_bounded(p: &[f64]) -> bool {
+    p.iter().all(|v| v.abs() <= DIVERGENCE_BOUND)
+}
+
 /// Layout and seed of a chaos-game run.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -108,12 +118,9 @@ impl ChaosGame {
                 for o in out.iter_mut() {
                     *o = t.step();
                 }
-                if !(out[kept - 1][0].is_finite() && out[kept - 1][1].is_finite()) {
-                    // Non-finite is absorbing for affine maps: find where it started.
-                    let k = out
-                        .iter()
-                        .position(|p| !(p[0].is_finite() && p[1].is_finite()))
-                        .unwrap_or(kept - 1);
+                if !is_bounded(&out[kept - 1]) {
+                    // Escaping is absorbing for the expanding codes that diverge: find where it started.
+                    let k = out.iter().position(|p| !is_bounded(p)).unwrap_or(kept - 1);
                     return Err(Error::Divergent {
                         trajectory: i,
                         step: self.warmup + k,
@@ -268,10 +275,10 @@ pub fn generate_nd(game: &ChaosGame, maps: &[AffineN], probs: &[f64]) -> Result<
                     out[j * h..(j + 1) * h].copy_from_slice(&p);
                 }
             }
-            if p.iter().any(|v| !v.is_finite()) {
+            if !is_bounded(&p) {
                 let first_bad = out
                     .chunks_exact(h)
-                    .position(|pt| pt.iter().any(|v| !v.is_finite()))
+                    .position(|pt| !is_bounded(pt))
                     .unwrap_or(kept - 1);
                 return Err(Error::Divergent {
                     trajectory: i,

@@ -5,12 +5,13 @@
 //! depend on the seed and the trajectory layout only, never on the number of threads.
 //! The first `warmup` points of each trajectory are dropped: from a start point in a box
 //! they need a few steps to reach the attractor (error shrinks like σmax^k).
-//! A trajectory whose point becomes non-finite is reported as [`crate::Error::Divergent`].
+//! A trajectory whose point becomes non-finite or leaves [`DIVERGENCE_BOUND`] is reported as
+//! [`crate::Error::Divergent`].
 
 mod game;
 mod rng;
 mod sampler;
 
-pub use game::{ChaosGame, Points, Trajectory, generate_nd};
+pub use game::{ChaosGame, DIVERGENCE_BOUND, Points, Trajectory, bbox, generate_nd, is_bounded};
 pub use rng::{mix_seed, trajectory_rng};
 pub use sampler::MapSampler;

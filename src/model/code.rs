@@ -357,7 +357,11 @@ impl IfsCode {
                 return Error::NonFinite {
                     what: format!("code file {}", origin.display()),
                     location: format!("line {line}, column {col} (`{token}`)"),
-                    value: if token.contains("NaN") { f64::NAN } else { f64::INFINITY },
+                    value: if token.contains("NaN") {
+                        f64::NAN
+                    } else {
+                        f64::INFINITY
+                    },
                 };
             }
             Error::Parse {

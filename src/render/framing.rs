@@ -96,6 +96,11 @@ pub fn zoom_window(base: &Framing, zoom: &Zoom) -> Result<Framing> {
 
 /// The bounding box of the attractor from a pilot chaos-game run (256 × 1000 steps,
 /// 100 dropped), seeded so the framing is reproducible.
+///
+/// Extreme points of an attractor are often fixed points of single maps or of short
+/// compositions (the corners of the Sierpiński triangle are), which a random orbit reaches
+/// only approximately; they are added exactly by iterating every `fᵢ` and every `fᵢ∘fⱼ`
+/// (up to 24 maps) to convergence from a pilot point.
 pub fn pilot_bbox<M: Map2>(maps: &[M], probs: &[f64], seed: u64) -> Result<([f64; 2], [f64; 2])> {
     let game = ChaosGame {
         trajectories: 256,
@@ -104,6 +109,33 @@ pub fn pilot_bbox<M: Map2>(maps: &[M], probs: &[f64], seed: u64) -> Result<([f64
         start_half_width: 1.0,
         seed: seed ^ 0x5EED_F1A7,
     };
-    let pts: Points = game.generate(maps, probs)?;
+    let mut pts: Points = game.generate(maps, probs)?;
+    let start = pts.data[0];
+    let settle = |f: &dyn Fn([f64; 2]) -> [f64; 2]| {
+        let mut p = start;
+        for _ in 0..400 {
+            p = f(p);
+        }
+        p
+    };
+    for (i, fi) in maps.iter().enumerate() {
+        if probs[i] <= 0.0 {
+            continue;
+        }
+        let p = settle(&|p| fi.apply(p));
+        if crate::chaos::is_bounded(&p) {
+            pts.data.push(p);
+        }
+        if maps.len() <= 24 {
+            for (j, fj) in maps.iter().enumerate() {
+                if i != j && probs[j] > 0.0 {
+                    let q = settle(&|p| fi.apply(fj.apply(p)));
+                    if crate::chaos::is_bounded(&q) {
+                        pts.data.push(q);
+                    }
+                }
+            }
+        }
+    }
     Ok(pts.bbox())
 }

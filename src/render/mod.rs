@@ -6,11 +6,15 @@
 //!   into binary-coverage (supersampled) or density images without storing them.
 //! - [`image_io`]: 8/16-bit PNG output and grey image loading.
 //!
-//! The differentiable splatter and SDF rasteriser join here as `splat` and `sdf`.
+//! - [`splat`]: the differentiable Gaussian point splatter (fused chaos game + splat with a
+//!   hand-written reverse pass), also as a candle `CustomOp1`.
+//!
+//! The differentiable SDF rasteriser joins here as `sdf`.
 
 pub mod framing;
 pub mod image_io;
 pub mod raster;
+pub mod splat;
 
 pub use framing::{FIT_FILL, View, Zoom, fit_window, zoom_window};
 pub use raster::{Raster, RenderConfig, RenderMode, RenderStats, render};

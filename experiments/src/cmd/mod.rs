@@ -2,7 +2,9 @@
 
 pub mod codes;
 pub mod fit_points;
+pub mod invert;
 pub mod render;
+pub mod run;
 pub mod sample;
 pub mod texture;
 

@@ -4,7 +4,7 @@
 //! values and two raw offsets. Decoding orthonormalises the columns of U and V by
 //! Gram–Schmidt, squashes the singular values with a sigmoid and the offsets with tanh:
 //!
-//! `M = GS(U)·diag(sigmoid σ)·GS(V)ᵀ`, `b = tanh(β)`.
+//! `M = GS(U)·diag(c·sigmoid σ)·GS(V)ᵀ`, `b = tanh(β)`, with `c` = [`SV_CAP`] just below 1.
 //!
 //! So every θ gives a contractive map (σ ∈ (0, 1)) with its offset in (−1, 1)²: the model
 //! lives in a normalised frame and renderers re-frame its points.
@@ -20,6 +20,10 @@ use crate::model::param::Parameterisation;
 
 /// Raw numbers per map.
 pub const SVD_PARAMS_PER_MAP: usize = 12;
+
+/// Singular values are `SV_CAP · sigmoid(σ)`: the sigmoid alone rounds to exactly 1 in
+/// floating point for σ ≳ 37 (f64) or ≳ 17 (f32), which would make a map non-contractive.
+pub const SV_CAP: f64 = 1.0 - 1e-6;
 
 /// `U·diag(sigmoid σ)·Vᵀ`, `tanh` offsets.
 #[derive(Clone, Copy, Debug)]
@@ -112,7 +116,7 @@ impl Parameterisation for Svd {
                 let (ur, vr, sr, br) = raw_parts(t);
                 let u = gram_schmidt(&ur).q;
                 let v = gram_schmidt(&vr).q;
-                let s = Matrix2::new(sigmoid(sr[0]), 0.0, 0.0, sigmoid(sr[1]));
+                let s = Matrix2::new(SV_CAP * sigmoid(sr[0]), 0.0, 0.0, SV_CAP * sigmoid(sr[1]));
                 Affine2 {
                     m: u * s * v.transpose(),
                     b: Vector2::new(br[0].tanh(), br[1].tanh()),
@@ -133,7 +137,7 @@ impl Parameterisation for Svd {
                 });
             }
             let (s1, _) = map.singular_values();
-            if s1 >= 1.0 - eps {
+            if s1 >= SV_CAP * (1.0 - eps) {
                 return Err(Error::NonContractive {
                     index: i,
                     sigma_max: s1,
@@ -160,7 +164,7 @@ impl Parameterisation for Svd {
                 theta.push(x);
             }
             for k in 0..2 {
-                let s = sv[k].clamp(eps, 1.0 - eps);
+                let s = (sv[k] / SV_CAP).clamp(eps, 1.0 - eps);
                 theta.push((s / (1.0 - s)).ln());
             }
             theta.push(map.b[0].atanh());
@@ -183,7 +187,8 @@ impl Parameterisation for Svd {
             let gu = gram_schmidt(&ur);
             let gv = gram_schmidt(&vr);
             let (u, v) = (gu.q, gv.q);
-            let s = [sigmoid(sr[0]), sigmoid(sr[1])];
+            let sg = [sigmoid(sr[0]), sigmoid(sr[1])];
+            let s = [SV_CAP * sg[0], SV_CAP * sg[1]];
             let sd = Matrix2::new(s[0], 0.0, 0.0, s[1]);
             // M = U·S·Vᵀ:  ∂L/∂U = G·V·S,  ∂L/∂V = Gᵀ·U·S,  ∂L/∂s_k = u_kᵀ·G·v_k.
             let gm = g.m;
@@ -195,7 +200,7 @@ impl Parameterisation for Svd {
             out.extend_from_slice(&[g_vr[(0, 0)], g_vr[(0, 1)], g_vr[(1, 0)], g_vr[(1, 1)]]);
             for k in 0..2 {
                 let gs = u.column(k).dot(&(gm * v.column(k)));
-                out.push(gs * s[k] * (1.0 - s[k]));
+                out.push(gs * SV_CAP * sg[k] * (1.0 - sg[k]));
             }
             for k in 0..2 {
                 let tb = br[k].tanh();

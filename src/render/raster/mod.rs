@@ -28,7 +28,7 @@ use indicatif::ProgressBar;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::chaos::{MapSampler, Trajectory};
+use crate::chaos::{MapSampler, Trajectory, is_bounded};
 use crate::error::{Error, Result};
 use crate::model::affine::Map2;
 use crate::model::code::Framing;
@@ -399,14 +399,12 @@ fn run_trajectory<M: Map2, A: Accumulator>(
             hits += 1;
         }
     }
-    let p = tr.point();
-    if !(p[0].is_finite() && p[1].is_finite()) {
-        // Non-finite is absorbing for affine maps: replay to find the first bad step.
+    if !is_bounded(&tr.point()) {
+        // Escaping is absorbing for diverging codes: replay to find the first bad step.
         let mut replay = Trajectory::new(maps, sampler, cfg.seed, index, 1.0);
         let mut step = 0usize;
         loop {
-            let q = replay.step();
-            if !(q[0].is_finite() && q[1].is_finite()) {
+            if !is_bounded(&replay.step()) {
                 break;
             }
             step += 1;

@@ -1,0 +1,139 @@
+//! `ifslab invert TARGET -o DIR`: recover an IFS code from an image (or from a code's render).
+//! The flags are a shorthand for a config file; the resolved config is written to DIR.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use ifslab::model::ParamKind;
+use ifslab_strategies::image::config::{ModelConfig, RendererConfig, TargetConfig};
+use ifslab_strategies::image::{InversionConfig, Polarity, StrategyConfig};
+
+use crate::inversion::{CONFIG_FILE, run_and_report};
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Target image (PNG, JPEG, …), or a code file / built-in name whose render is the target.
+    #[arg(required_unless_present = "resume")]
+    pub target: Option<String>,
+    /// Output folder.
+    #[arg(short, long, default_value = "out/invert")]
+    pub output: PathBuf,
+    /// Continue the run in DIR from its last checkpoint (bit-identical to not stopping).
+    #[arg(long, value_name = "DIR", conflicts_with = "target")]
+    pub resume: Option<PathBuf>,
+    /// Number of maps.
+    #[arg(long, default_value_t = 3)]
+    pub maps: usize,
+    /// Optimisation iterations.
+    #[arg(long, default_value_t = 2000)]
+    pub iters: u64,
+    /// hybrid | adam | annealing | noisy.
+    #[arg(long, default_value = "hybrid")]
+    pub strategy: String,
+    /// Side of the (square) target and render in pixels.
+    #[arg(long, default_value_t = 128)]
+    pub size: usize,
+    /// svd | naive.
+    #[arg(long, default_value = "svd")]
+    pub param: String,
+    /// Supersampling of the differentiable renderer.
+    #[arg(long, default_value_t = 4)]
+    pub supersample: usize,
+    /// Gaussian σ in supersampled pixels.
+    #[arg(long, default_value_t = 1.0)]
+    pub sigma: f64,
+    /// Learning rate of Adam-based strategies.
+    #[arg(long)]
+    pub lr: Option<f64>,
+    /// Iterations between annealing phases (hybrid).
+    #[arg(long)]
+    pub anneal_every: Option<u64>,
+    /// Checkpoint every K iterations.
+    #[arg(long, default_value_t = 100)]
+    pub checkpoint_every: u64,
+    /// Seed of the run.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// The target is a dark shape on a light background (default: decide from the border).
+    #[arg(long)]
+    pub dark_on_light: bool,
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    if let Some(dir) = a.resume {
+        let cfg = InversionConfig::load(&dir.join(CONFIG_FILE))
+            .with_context(|| format!("reading the run in {}", dir.display()))?;
+        return report(&cfg, &dir, true);
+    }
+    let cfg = config_from_flags(&a)?;
+    report(&cfg, &a.output, false)
+}
+
+fn report(cfg: &InversionConfig, dir: &Path, resume: bool) -> anyhow::Result<()> {
+    let s = run_and_report(cfg, dir, resume)?;
+    println!(
+        "{}: {} iterations of {} in {:.1} s, IoU {:.3}, PSNR {:.2} dB, SSIM {:.3} → {}",
+        dir.display(),
+        s.iterations,
+        s.strategy,
+        s.seconds,
+        s.iou,
+        s.psnr,
+        s.ssim,
+        dir.join("code.json").display()
+    );
+    Ok(())
+}
+
+fn config_from_flags(a: &Args) -> anyhow::Result<InversionConfig> {
+    let spec = a.target.clone().expect("clap: target or --resume");
+    let is_image = Path::new(&spec).is_file()
+        && !spec.to_ascii_lowercase().ends_with(".json");
+    let target = TargetConfig {
+        image: is_image.then(|| PathBuf::from(&spec)),
+        code: (!is_image).then(|| spec.clone()),
+        size: a.size,
+        polarity: if a.dark_on_light {
+            Polarity::DarkOnLight
+        } else {
+            Polarity::Auto
+        },
+    };
+    let mut strategy = StrategyConfig::by_name(&a.strategy)?;
+    match &mut strategy {
+        StrategyConfig::Adam(c) => c.lr = a.lr.unwrap_or(c.lr),
+        StrategyConfig::Noisy(c) => c.adam.lr = a.lr.unwrap_or(c.adam.lr),
+        StrategyConfig::Hybrid(c) => {
+            c.adam.lr = a.lr.unwrap_or(c.adam.lr);
+            c.anneal_every = a.anneal_every.unwrap_or(c.anneal_every);
+        }
+        StrategyConfig::Annealing(_) => {}
+    }
+    let parameterisation = match a.param.as_str() {
+        "svd" => ParamKind::Svd,
+        "naive" => ParamKind::Naive,
+        other => anyhow::bail!("unknown parameterisation `{other}`: use svd or naive"),
+    };
+    let cfg = InversionConfig {
+        seed: a.seed,
+        iterations: a.iters,
+        checkpoint_every: a.checkpoint_every,
+        output: Some(a.output.clone()),
+        target,
+        model: ModelConfig {
+            maps: a.maps,
+            parameterisation,
+            ..Default::default()
+        },
+        generator: Default::default(),
+        renderer: RendererConfig {
+            supersample: a.supersample,
+            sigma: a.sigma,
+            ..RendererConfig::default()
+        },
+        loss: Default::default(),
+        strategy,
+    };
+    cfg.validate()?;
+    Ok(cfg)
+}

@@ -1,0 +1,138 @@
+//! The chaos game of the fused op, keeping every state for the reverse pass, and the
+//! backward scan through each trajectory's maps.
+
+use rand::{Rng, RngCore};
+use rayon::prelude::*;
+
+use crate::chaos::{ChaosGame, MapSampler, is_bounded, trajectory_rng};
+use crate::error::{Error, Result};
+use crate::model::affine::{Affine2, Map2};
+
+/// Trajectories reduced together in the reverse pass; fixed so sums have a fixed order.
+const GROUP: usize = 16;
+
+/// States `s_0..=s_l` and map indices `i_0..i_{l−1}` of every trajectory
+/// (`s_{k+1} = f_{i_k}(s_k)`); states `s_{m+1}..=s_l` are the kept points.
+#[derive(Clone, Debug)]
+pub struct TrajectoryTape {
+    /// `b·(l + 1)` states, trajectory-major.
+    pub states: Vec<[f64; 2]>,
+    /// `b·l` map indices, trajectory-major.
+    pub indices: Vec<u16>,
+    /// Number of trajectories b.
+    pub trajectories: usize,
+    /// Steps per trajectory l.
+    pub length: usize,
+    /// Dropped steps m.
+    pub warmup: usize,
+}
+
+/// Runs the game with uniform map probabilities, seeded by `seed`.
+pub fn run(game: &ChaosGame, maps: &[Affine2], seed: u64) -> Result<TrajectoryTape> {
+    let (b, l) = (game.trajectories, game.length);
+    let sampler = MapSampler::uniform(maps.len());
+    let mut states = vec![[0.0; 2]; b * (l + 1)];
+    let mut indices = vec![0u16; b * l];
+    let hw = game.start_half_width;
+    states
+        .par_chunks_mut(l + 1)
+        .zip(indices.par_chunks_mut(l))
+        .enumerate()
+        .try_for_each(|(j, (st, ix))| {
+            let mut rng = trajectory_rng(seed, j as u64);
+            let mut p = if hw > 0.0 {
+                [rng.random_range(-hw..hw), rng.random_range(-hw..hw)]
+            } else {
+                [0.0, 0.0]
+            };
+            st[0] = p;
+            for k in 0..l {
+                let i = sampler.pick(rng.next_u64());
+                p = maps[i].apply(p);
+                ix[k] = i as u16;
+                st[k + 1] = p;
+            }
+            if !is_bounded(&p) {
+                let step = st.iter().position(|q| !is_bounded(q)).unwrap_or(l);
+                return Err(Error::Divergent {
+                    trajectory: j,
+                    step,
+                });
+            }
+            Ok(())
+        })?;
+    Ok(TrajectoryTape {
+        states,
+        indices,
+        trajectories: b,
+        length: l,
+        warmup: game.warmup,
+    })
+}
+
+impl TrajectoryTape {
+    /// Kept points per trajectory, `l − m`.
+    pub fn kept_per_trajectory(&self) -> usize {
+        self.length - self.warmup
+    }
+
+    /// The kept points `s_{m+1}..=s_l` of every trajectory, trajectory-major.
+    pub fn kept_points(&self) -> Vec<[f64; 2]> {
+        let (l, m) = (self.length, self.warmup);
+        self.states
+            .chunks_exact(l + 1)
+            .flat_map(|st| st[m + 1..].iter().copied())
+            .collect()
+    }
+
+    /// Backward scan: `∂L/∂maps` from `∂L/∂(kept points)` (same layout as [`Self::kept_points`]).
+    pub fn backward(&self, maps: &[Affine2], grad_points: &[[f64; 2]]) -> Vec<Affine2> {
+        let (l, m) = (self.length, self.warmup);
+        let kept = l - m;
+        let n = maps.len();
+        let zero = || vec![[0.0f64; 6]; n];
+        let partials: Vec<Vec<[f64; 6]>> = (0..self.trajectories.div_ceil(GROUP))
+            .into_par_iter()
+            .map(|g| {
+                let mut acc = zero();
+                for j in g * GROUP..((g + 1) * GROUP).min(self.trajectories) {
+                    let st = &self.states[j * (l + 1)..(j + 1) * (l + 1)];
+                    let ix = &self.indices[j * l..(j + 1) * l];
+                    let gp = &grad_points[j * kept..(j + 1) * kept];
+                    let mut lam = [0.0f64; 2];
+                    for k in (1..=l).rev() {
+                        if k > m {
+                            let g = gp[k - m - 1];
+                            lam[0] += g[0];
+                            lam[1] += g[1];
+                        }
+                        let i = ix[k - 1] as usize;
+                        let x = st[k - 1];
+                        let a = &mut acc[i];
+                        a[0] += lam[0] * x[0];
+                        a[1] += lam[0] * x[1];
+                        a[2] += lam[1] * x[0];
+                        a[3] += lam[1] * x[1];
+                        a[4] += lam[0];
+                        a[5] += lam[1];
+                        let mm = &maps[i].m;
+                        lam = [
+                            mm[(0, 0)] * lam[0] + mm[(1, 0)] * lam[1],
+                            mm[(0, 1)] * lam[0] + mm[(1, 1)] * lam[1],
+                        ];
+                    }
+                }
+                acc
+            })
+            .collect();
+        let mut total = zero();
+        for p in partials {
+            for (t, v) in total.iter_mut().zip(p) {
+                for c in 0..6 {
+                    t[c] += v[c];
+                }
+            }
+        }
+        total.iter().map(|c| Affine2::from_coefficients(c)).collect()
+    }
+}

@@ -1,0 +1,56 @@
+//! One driver for every iterative strategy: argmin's `Executor` runs the solver, this module
+//! supplies what the strategies share — the problem interface, an atomic JSON checkpoint
+//! that resumes bit-identically, and a CSV log that survives a crash.
+//!
+//! A strategy is an argmin [`Solver`](argmin::core::Solver) over [`GradState`] (θ as a flat
+//! `Vec<f64>`); it talks to its problem through [`Differentiable`] (loss and gradient at
+//! an iteration) and, for annealing-type steps, [`crate::annealing::Anneal`].
+//! Problems are stochastic: iteration `t` draws its own chaos-game trajectories from a seed
+//! derived from `t`, so a resumed run sees exactly the randomness of an uninterrupted one.
+
+mod checkpoint;
+mod log;
+
+pub use checkpoint::JsonCheckpoint;
+pub use log::CsvLog;
+
+use argmin::core::{IterState, KV, KvValue};
+
+use crate::error::Result;
+
+/// The solver state every gradient strategy runs on: θ, its gradient, the loss.
+pub type GradState = IterState<Vec<f64>, Vec<f64>, (), (), (), f64>;
+
+/// The loss at θ with its gradient and named terms (for logs).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Evaluation {
+    /// Total loss.
+    pub loss: f64,
+    /// ∂loss/∂θ.
+    pub grad: Vec<f64>,
+    /// Named terms of the loss (unweighted values, as logged).
+    pub terms: Vec<(&'static str, f64)>,
+}
+
+/// A problem gradient strategies can minimise.
+pub trait Differentiable {
+    /// Loss and gradient at θ for iteration `iter` (which picks the iteration's randomness).
+    fn evaluate(&self, theta: &[f64], iter: u64) -> Result<Evaluation>;
+
+    /// Brings θ back onto the parameterisation's canonical set after an update.
+    fn project(&self, _theta: &mut [f64]) {}
+}
+
+/// The key–value record of an evaluation, for argmin's observers.
+pub fn kv_of(eval: &Evaluation) -> KV {
+    let mut kv = KV::new();
+    for (name, v) in &eval.terms {
+        kv.insert(*name, KvValue::Float(*v));
+    }
+    kv
+}
+
+/// Converts the strategies' error into argmin's.
+pub(crate) fn to_argmin(e: crate::Error) -> argmin::core::Error {
+    argmin::core::Error::new(e)
+}

@@ -1,0 +1,133 @@
+//! The hybrid strategy of the chaotic-splatting paper: Adam, interrupted every
+//! `anneal_every` iterations during the first `anneal_fraction` of the run by an annealing
+//! phase — `candidates` Metropolis proposals on raw θ with noise std `noise·(1 − t/T)` and
+//! acceptance `exp(−scale·ΔMSE/τ)`, `τ = 1 − t/T` — after which Adam starts fresh (its
+//! moment estimates no longer describe the new θ).
+//!
+//! Gradient descent alone gets stuck where maps overlap or a map's image lies far from
+//! where it should be; the annealing phases let θ jump between those basins early, and Adam
+//! refines afterwards.
+//!
+//! ## References
+//! - Djeacoumar et al., *Learning Image Fractals Using Chaotic Differentiable Point Splatting*.
+
+use argmin::core::{Error as ArgminError, State, KV, KvValue, Problem, Solver};
+use serde::{Deserialize, Serialize};
+
+use crate::adam::{Adam, AdamConfig, adam_iteration};
+use crate::annealing::{Anneal, AnnealingConfig, metropolis_phase};
+use crate::driver::{Differentiable, GradState};
+use crate::error::{Error, Result};
+
+/// Hyper-parameters of the hybrid (defaults: the paper's).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct HybridConfig {
+    /// The Adam part.
+    pub adam: AdamConfig,
+    /// The annealing phases (paper: 10 candidates, noise 0.2, scale 10).
+    pub annealing: AnnealingConfig,
+    /// Iterations between annealing phases (paper: 250).
+    pub anneal_every: u64,
+    /// Fraction of the run during which phases happen (paper: the first half).
+    pub anneal_fraction: f64,
+}
+
+impl Default for HybridConfig {
+    fn default() -> Self {
+        HybridConfig {
+            adam: AdamConfig::default(),
+            annealing: AnnealingConfig {
+                candidates: 10,
+                ..AnnealingConfig::default()
+            },
+            anneal_every: 250,
+            anneal_fraction: 0.5,
+        }
+    }
+}
+
+impl HybridConfig {
+    /// Checks every field; the error names the one to change.
+    pub fn validate(&self) -> Result<()> {
+        self.adam.validate()?;
+        self.annealing.validate()?;
+        if self.anneal_every == 0 {
+            return Err(Error::param("anneal_every", "must be at least 1"));
+        }
+        if !(0.0..=1.0).contains(&self.anneal_fraction) {
+            return Err(Error::param(
+                "anneal_fraction",
+                format!("must lie in [0, 1], got {}", self.anneal_fraction),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Adam with annealing phases.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Hybrid {
+    config: HybridConfig,
+    adam: Adam,
+    max_iters: u64,
+    seed: u64,
+    phases: u64,
+    accepted: u64,
+}
+
+impl Hybrid {
+    /// A solver for a run of `max_iters` iterations, seeded by `seed`.
+    pub fn new(config: HybridConfig, max_iters: u64, seed: u64) -> Result<Self> {
+        config.validate()?;
+        if max_iters == 0 {
+            return Err(Error::param("iterations", "must be at least 1"));
+        }
+        Ok(Hybrid {
+            adam: Adam::new(config.adam.clone())?,
+            config,
+            max_iters,
+            seed,
+            phases: 0,
+            accepted: 0,
+        })
+    }
+
+    /// Whether iteration `t` starts with an annealing phase.
+    pub fn anneals_at(&self, t: u64) -> bool {
+        t > 0
+            && t % self.config.anneal_every == 0
+            && (t as f64) < self.config.anneal_fraction * self.max_iters as f64
+    }
+}
+
+impl<O: Anneal + Differentiable> Solver<O, GradState> for Hybrid {
+    fn name(&self) -> &str {
+        "Hybrid"
+    }
+
+    fn next_iter(&mut self, problem: &mut Problem<O>, mut state: GradState) -> Result<(GradState, Option<KV>), ArgminError> {
+        let t = state.get_iter();
+        let mut phase = None;
+        if self.anneals_at(t) {
+            let mut theta = state
+                .take_param()
+                .ok_or_else(|| ArgminError::msg("no initial parameters"))?;
+            let frac = t as f64 / self.max_iters as f64;
+            // Streams of annealing phases are kept apart from the gradient iterations'.
+            let stream = t | (1 << 62);
+            let st = metropolis_phase(problem, &mut theta, &self.config.annealing, frac, self.seed, stream)?;
+            self.phases += 1;
+            self.accepted += st.accepted as u64;
+            self.adam.reset();
+            state = state.param(theta);
+            phase = Some(st);
+        }
+        let (state, mut kv) = adam_iteration(&mut self.adam, problem, state, |_| {})?;
+        if let Some(st) = phase {
+            kv.insert("anneal_accepted", KvValue::Float(st.accepted as f64));
+            kv.insert("anneal_mse", KvValue::Float(st.cost));
+        }
+        Ok((state, Some(kv)))
+    }
+}

@@ -1,0 +1,20 @@
+//! Image → IFS code: fit the maps of an IFS so that the fused splat op's render matches a
+//! target image, with any of the gradient or annealing strategies.
+//!
+//! - [`target`]: load and frame targets the way the model frames its points;
+//! - [`problem`]: θ → maps → splat → composite loss and its gradient;
+//! - [`config`]: the validated TOML configuration of a run;
+//! - [`run`]: initial code, solver, executor, checkpoint and resume.
+//!
+//! ## References
+//! - Djeacoumar et al., *Learning Image Fractals Using Chaotic Differentiable Point Splatting*.
+
+pub mod config;
+pub mod problem;
+pub mod run;
+pub mod target;
+
+pub use config::{InversionConfig, StrategyConfig, TargetConfig};
+pub use problem::ImageProblem;
+pub use run::{InversionOutcome, initial_theta, run_inversion};
+pub use target::{Polarity, frame_target, load_target};
