@@ -28,7 +28,11 @@ pub fn prepare_target(cfg: &InversionConfig) -> anyhow::Result<Vec<f32>> {
         return load_target(path, size, cfg.target.polarity)
             .with_context(|| format!("preparing the target {}", path.display()));
     }
-    let spec = cfg.target.code.as_deref().expect("validated: image or code");
+    let spec = cfg
+        .target
+        .code
+        .as_deref()
+        .expect("validated: image or code");
     let code = resolve_code(spec)?;
     let maps = code.affine2().context("the target code must be 2-D")?;
     let probs = code.evaluation_probabilities()?;
@@ -76,7 +80,14 @@ pub fn run_and_report(cfg: &InversionConfig, dir: &Path, resume: bool) -> anyhow
     }
     let target = prepare_target(cfg)?;
     let size = cfg.target.size;
-    save_grey_png(&dir.join("target.png"), &target, size as u32, size as u32, BitDepth::Eight, false)?;
+    save_grey_png(
+        &dir.join("target.png"),
+        &target,
+        size as u32,
+        size as u32,
+        BitDepth::Eight,
+        false,
+    )?;
     let pb = bar(cfg.iterations, "iterations");
     pb.set_style(
         indicatif::ProgressStyle::with_template(
@@ -86,7 +97,13 @@ pub fn run_and_report(cfg: &InversionConfig, dir: &Path, resume: bool) -> anyhow
     );
     pb.set_prefix(cfg.strategy.name());
     let started = Instant::now();
-    let outcome = run_inversion(cfg, target.clone(), dir, resume, vec![Box::new(ProgressObserver::new(pb))])?;
+    let outcome = run_inversion(
+        cfg,
+        target.clone(),
+        dir,
+        resume,
+        vec![Box::new(ProgressObserver::new(pb))],
+    )?;
     let metrics = write_outputs(cfg, dir, &outcome, &target)?;
     let summary = Summary {
         strategy: cfg.strategy.name().into(),
@@ -98,26 +115,46 @@ pub fn run_and_report(cfg: &InversionConfig, dir: &Path, resume: bool) -> anyhow
         ssim: metrics.ssim,
         lpips_note: outcome.lpips_note.clone(),
     };
-    ifslab::io::write_atomic(&dir.join("summary.json"), serde_json::to_string_pretty(&summary)?.as_bytes())?;
+    ifslab::io::write_atomic(
+        &dir.join("summary.json"),
+        serde_json::to_string_pretty(&summary)?.as_bytes(),
+    )?;
     Ok(summary)
 }
 
 /// Code file, final render, zoom strip, loss plot; returns the render's metrics.
-fn write_outputs(cfg: &InversionConfig, dir: &Path, out: &InversionOutcome, target: &[f32]) -> anyhow::Result<ImageMetrics> {
+fn write_outputs(
+    cfg: &InversionConfig,
+    dir: &Path,
+    out: &InversionOutcome,
+    target: &[f32],
+) -> anyhow::Result<ImageMetrics> {
     let size = cfg.target.size;
     let mut code = IfsCode::from_affine2(Some("recovered"), &out.maps)
         .context("the recovered code failed validation")?;
     let probs = code.evaluation_probabilities()?;
-    let final_render = render(&out.maps, &probs, &eval_config(size, 4_000_000, cfg.seed), None)?;
+    let final_render = render(
+        &out.maps,
+        &probs,
+        &eval_config(size, 4_000_000, cfg.seed),
+        None,
+    )?;
     code.framing = Some(final_render.stats.window);
-    code.meta.insert("strategy".into(), cfg.strategy.name().into());
+    code.meta
+        .insert("strategy".into(), cfg.strategy.name().into());
     code.meta.insert("iterations".into(), out.iterations.into());
     code.meta.insert("final_loss".into(), out.final_loss.into());
     code.meta.insert("seed".into(), cfg.seed.into());
     code.save(dir.join("code.json"))?;
     final_render.save_png(&dir.join("render.png"), BitDepth::Eight, false)?;
     let metrics = paper_metrics::<f32>(&final_render.values, target, size, size, None)?;
-    zoom_strip(&out.maps, &probs, &final_render.stats.window, &dir.join("zoom_strip.png"), cfg.seed)?;
+    zoom_strip(
+        &out.maps,
+        &probs,
+        &final_render.stats.window,
+        &dir.join("zoom_strip.png"),
+        cfg.seed,
+    )?;
     loss_plot(&out.log, &dir.join("loss.png"))?;
     Ok(metrics)
 }
@@ -132,7 +169,13 @@ pub fn interesting_point(maps: &[Affine2]) -> Option<[f64; 2]> {
 }
 
 /// Renders 1×, 4×, 16×, 64× views around an interesting point side by side, with captions.
-pub fn zoom_strip(maps: &[Affine2], probs: &[f64], base: &Framing, path: &Path, seed: u64) -> anyhow::Result<()> {
+pub fn zoom_strip(
+    maps: &[Affine2],
+    probs: &[f64],
+    base: &Framing,
+    path: &Path,
+    seed: u64,
+) -> anyhow::Result<()> {
     const PANEL: u32 = 256;
     const CAPTION: u32 = 28;
     let center = interesting_point(maps).unwrap_or_else(|| base.center());
@@ -174,7 +217,11 @@ pub fn zoom_strip(maps: &[Affine2], probs: &[f64], base: &Framing, path: &Path, 
         let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
         for (i, f) in factors.iter().enumerate() {
             let x = i as i32 * (PANEL as i32 + 6) + 8;
-            root.draw(&Text::new(format!("{f}×"), (x, 4), ("sans-serif", 20).into_font().color(&BLACK)))?;
+            root.draw(&Text::new(
+                format!("{f}×"),
+                (x, 4),
+                ("sans-serif", 20).into_font().color(&BLACK),
+            ))?;
         }
         root.present()?;
     }
@@ -187,11 +234,16 @@ pub fn zoom_strip(maps: &[Affine2], probs: &[f64], base: &Framing, path: &Path, 
 
 /// Plots `loss` and each logged term of a run's CSV log against the iteration.
 pub fn loss_plot(log: &Path, out: &Path) -> anyhow::Result<()> {
-    let text = std::fs::read_to_string(log).with_context(|| format!("reading {}", log.display()))?;
+    let text =
+        std::fs::read_to_string(log).with_context(|| format!("reading {}", log.display()))?;
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().context("empty log")?.split(',').collect();
     let rows: Vec<Vec<f64>> = lines
-        .map(|l| l.split(',').map(|v| v.parse().unwrap_or(f64::NAN)).collect())
+        .map(|l| {
+            l.split(',')
+                .map(|v| v.parse().unwrap_or(f64::NAN))
+                .collect()
+        })
         .filter(|r: &Vec<f64>| r.len() == header.len())
         .collect();
     let mut series = Vec::new();
@@ -213,5 +265,6 @@ pub fn loss_plot(log: &Path, out: &Path) -> anyhow::Result<()> {
 
 /// The run folder named by `-o`, the config, or a default.
 pub fn output_dir(cli: Option<PathBuf>, cfg: &InversionConfig, default: &str) -> PathBuf {
-    cli.or_else(|| cfg.output.clone()).unwrap_or_else(|| PathBuf::from(default))
+    cli.or_else(|| cfg.output.clone())
+        .unwrap_or_else(|| PathBuf::from(default))
 }

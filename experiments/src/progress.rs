@@ -34,11 +34,15 @@ impl argmin::core::observers::Observe<ifslab_strategies::driver::GradState> for 
     ) -> Result<(), argmin::core::Error> {
         use argmin::core::State;
         self.bar.set_position(state.get_iter() + 1);
-        self.bar.set_message(format!("loss {:.5}", state.get_cost()));
+        self.bar
+            .set_message(format!("loss {:.5}", state.get_cost()));
         Ok(())
     }
 
-    fn observe_final(&mut self, _state: &ifslab_strategies::driver::GradState) -> Result<(), argmin::core::Error> {
+    fn observe_final(
+        &mut self,
+        _state: &ifslab_strategies::driver::GradState,
+    ) -> Result<(), argmin::core::Error> {
         self.bar.finish_and_clear();
         Ok(())
     }

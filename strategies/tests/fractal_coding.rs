@@ -319,7 +319,14 @@ fn refinement_with_a_single_candidate_changes_nothing() {
     // Candidates of another texture's encoding are refused, not trusted.
     let other = encode(&noise(48, 12, 1, 4), &EncoderConfig::default()).unwrap();
     assert_eq!(other.candidates.texels(), enc.candidates.texels());
-    assert!(refine(&mut enc.code, &other.candidates, &RefineConfig { passes: 1 }).is_err());
+    assert!(
+        refine(
+            &mut enc.code,
+            &other.candidates,
+            &RefineConfig { passes: 1 }
+        )
+        .is_err()
+    );
 }
 
 #[test]

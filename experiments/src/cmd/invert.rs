@@ -5,8 +5,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use ifslab::model::ParamKind;
-use ifslab_strategies::image::config::{ModelConfig, RendererConfig, TargetConfig};
-use ifslab_strategies::image::{InversionConfig, Polarity, StrategyConfig};
+use ifslab_strategies::image::config::{
+    GeneratorConfig, ModelConfig, RendererConfig, TargetConfig,
+};
+use ifslab_strategies::image::{InitKind, InversionConfig, Polarity, StrategyConfig};
 
 use crate::inversion::{CONFIG_FILE, run_and_report};
 
@@ -42,6 +44,12 @@ pub struct Args {
     /// Gaussian σ in supersampled pixels.
     #[arg(long, default_value_t = 1.0)]
     pub sigma: f64,
+    /// Chaos-game trajectories per iteration.
+    #[arg(long, default_value_t = 2000)]
+    pub trajectories: usize,
+    /// Steps per trajectory (10 dropped as warm-up).
+    #[arg(long, default_value_t = 250)]
+    pub length: usize,
     /// Learning rate of Adam-based strategies.
     #[arg(long)]
     pub lr: Option<f64>,
@@ -54,6 +62,9 @@ pub struct Args {
     /// Seed of the run.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Initial code: random (Anderson–Farrell) or em (fit to the target's points first).
+    #[arg(long, default_value = "random")]
+    pub init: String,
     /// The target is a dark shape on a light background (default: decide from the border).
     #[arg(long)]
     pub dark_on_light: bool,
@@ -87,8 +98,7 @@ fn report(cfg: &InversionConfig, dir: &Path, resume: bool) -> anyhow::Result<()>
 
 fn config_from_flags(a: &Args) -> anyhow::Result<InversionConfig> {
     let spec = a.target.clone().expect("clap: target or --resume");
-    let is_image = Path::new(&spec).is_file()
-        && !spec.to_ascii_lowercase().ends_with(".json");
+    let is_image = Path::new(&spec).is_file() && !spec.to_ascii_lowercase().ends_with(".json");
     let target = TargetConfig {
         image: is_image.then(|| PathBuf::from(&spec)),
         code: (!is_image).then(|| spec.clone()),
@@ -123,9 +133,18 @@ fn config_from_flags(a: &Args) -> anyhow::Result<InversionConfig> {
         model: ModelConfig {
             maps: a.maps,
             parameterisation,
+            init: match a.init.as_str() {
+                "random" => InitKind::Random,
+                "em" => InitKind::Em,
+                other => anyhow::bail!("unknown --init `{other}`: use random or em"),
+            },
             ..Default::default()
         },
-        generator: Default::default(),
+        generator: GeneratorConfig {
+            trajectories: a.trajectories,
+            length: a.length,
+            ..GeneratorConfig::default()
+        },
         renderer: RendererConfig {
             supersample: a.supersample,
             sigma: a.sigma,

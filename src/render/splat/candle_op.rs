@@ -45,7 +45,11 @@ fn maps_of(v: &[f64]) -> Vec<Affine2> {
 }
 
 /// A `(n, 6)` tensor from maps.
-pub fn maps_to_tensor(maps: &[Affine2], dtype: DType, device: &Device) -> candle_core::Result<Tensor> {
+pub fn maps_to_tensor(
+    maps: &[Affine2],
+    dtype: DType,
+    device: &Device,
+) -> candle_core::Result<Tensor> {
     let flat: Vec<f64> = maps.iter().flat_map(|m| m.coefficients()).collect();
     Tensor::from_vec(flat, (maps.len(), 6), device)?.to_dtype(dtype)
 }
@@ -59,7 +63,9 @@ pub fn maps_from_tensor(t: &Tensor) -> candle_core::Result<Vec<Affine2>> {
 fn contiguous<'a, T: Copy>(data: &'a [T], layout: &Layout) -> candle_core::Result<&'a [T]> {
     match layout.contiguous_offsets() {
         Some((a, b)) => Ok(&data[a..b]),
-        None => Err(candle_core::Error::Msg("splat op needs a contiguous maps tensor".into())),
+        None => Err(candle_core::Error::Msg(
+            "splat op needs a contiguous maps tensor".into(),
+        )),
     }
 }
 
@@ -68,7 +74,11 @@ impl CustomOp1 for SplatOp {
         "ifslab-splat"
     }
 
-    fn cpu_fwd(&self, storage: &CpuStorage, layout: &Layout) -> candle_core::Result<(CpuStorage, Shape)> {
+    fn cpu_fwd(
+        &self,
+        storage: &CpuStorage,
+        layout: &Layout,
+    ) -> candle_core::Result<(CpuStorage, Shape)> {
         let dims = layout.shape().dims();
         if dims.len() != 2 || dims[1] != 6 {
             return Err(candle_core::Error::Msg(format!(
@@ -78,7 +88,12 @@ impl CustomOp1 for SplatOp {
         let shape = Shape::from((self.cfg.height, self.cfg.width));
         let (out, maps, tape) = match storage {
             CpuStorage::F32(v) => {
-                let maps = maps_of(&contiguous(v, layout)?.iter().map(|&x| x as f64).collect::<Vec<_>>());
+                let maps = maps_of(
+                    &contiguous(v, layout)?
+                        .iter()
+                        .map(|&x| x as f64)
+                        .collect::<Vec<_>>(),
+                );
                 let (img, tape) = forward::<f32>(&self.cfg, &maps, self.seed).map_err(to_candle)?;
                 (CpuStorage::F32(img), maps, Tape::F32(tape))
             }
@@ -98,7 +113,12 @@ impl CustomOp1 for SplatOp {
         Ok((out, shape))
     }
 
-    fn bwd(&self, arg: &Tensor, _res: &Tensor, grad_res: &Tensor) -> candle_core::Result<Option<Tensor>> {
+    fn bwd(
+        &self,
+        arg: &Tensor,
+        _res: &Tensor,
+        grad_res: &Tensor,
+    ) -> candle_core::Result<Option<Tensor>> {
         let guard = self.state.lock().expect("splat tape lock");
         let (maps, tape) = guard
             .as_ref()

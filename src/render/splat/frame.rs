@@ -64,7 +64,12 @@ pub struct FrameState {
 }
 
 /// Resolves the framing for `points` on a `grid_w × grid_h` supersampled grid.
-pub fn fit(framing: &SplatFraming, points: &[[f64; 2]], grid_w: usize, grid_h: usize) -> Result<FrameState> {
+pub fn fit(
+    framing: &SplatFraming,
+    points: &[[f64; 2]],
+    grid_w: usize,
+    grid_h: usize,
+) -> Result<FrameState> {
     let grid = [grid_w as f64, grid_h as f64];
     match framing {
         SplatFraming::Window(w) => {
@@ -143,7 +148,10 @@ impl FrameState {
     pub fn project<T: Float>(&self, p: &[f64; 2]) -> [T; 2] {
         let u = (p[0] - self.center[0]) * self.scale + 0.5 * self.grid[0];
         let v = 0.5 * self.grid[1] - (p[1] - self.center[1]) * self.scale;
-        [T::from(u).unwrap_or(T::nan()), T::from(v).unwrap_or(T::nan())]
+        [
+            T::from(u).unwrap_or(T::nan()),
+            T::from(v).unwrap_or(T::nan()),
+        ]
     }
 
     /// `∂L/∂points` (world) from `∂L/∂(u, v)`.
@@ -182,7 +190,11 @@ impl FrameState {
         g[ext[3]][1] += 0.5 * gc[1];
         // k = fill·G / (hi − lo) on the limiting axis: ∂k/∂hi = −k/(hi − lo) = −∂k/∂lo.
         let dk = -k / ext_w[axis];
-        let (lo_i, hi_i) = if axis == 0 { (ext[0], ext[1]) } else { (ext[2], ext[3]) };
+        let (lo_i, hi_i) = if axis == 0 {
+            (ext[0], ext[1])
+        } else {
+            (ext[2], ext[3])
+        };
         g[hi_i][axis] += gk * dk;
         g[lo_i][axis] -= gk * dk;
         g

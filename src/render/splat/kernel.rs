@@ -47,6 +47,8 @@ pub struct SplatState<T> {
     tile_start: Vec<usize>,
     /// Point indices, grouped by tile, in point order within a tile.
     entries: Vec<u32>,
+    /// The points of `entries`, copied in the same order so a tile reads them sequentially.
+    coords: Vec<[T; 2]>,
     trans: Vec<T>,
 }
 
@@ -95,8 +97,9 @@ fn footprint(x: f64, r: f64, n: usize) -> Option<(usize, usize)> {
     (lo <= hi).then_some((lo as usize, hi as usize))
 }
 
-/// Bins points to tiles by a stable counting sort (point order kept within each tile).
-fn bin<T: Float + Send + Sync>(uv: &[[T; 2]], g: &Geometry) -> (Vec<usize>, Vec<u32>) {
+/// Bins points to tiles by a stable counting sort (point order kept within each tile);
+/// returns the tile offsets, the point indices and the points in binned order.
+fn bin<T: Float + Send + Sync>(uv: &[[T; 2]], g: &Geometry) -> (Vec<usize>, Vec<u32>, Vec<[T; 2]>) {
     let ranges: Vec<Option<[u32; 4]>> = uv
         .par_iter()
         .map(|p| {
@@ -129,18 +132,20 @@ fn bin<T: Float + Send + Sync>(uv: &[[T; 2]], g: &Geometry) -> (Vec<usize>, Vec<
     let tile_start = count.clone();
     let mut fill = count;
     let mut entries = vec![0u32; tile_start[n_tiles]];
+    let mut coords = vec![[T::zero(); 2]; tile_start[n_tiles]];
     for (j, r) in ranges.iter().enumerate() {
         if let Some(r) = r {
             for ty in r[2]..=r[3] {
                 for tx in r[0]..=r[1] {
                     let t = ty as usize * g.tiles_x + tx as usize;
                     entries[fill[t]] = j as u32;
+                    coords[fill[t]] = uv[j];
                     fill[t] += 1;
                 }
             }
         }
     }
-    (tile_start, entries)
+    (tile_start, entries, coords)
 }
 
 /// Lanes of the inner loops: footprint rows are padded to a multiple of this (with zero
@@ -156,7 +161,15 @@ const LANES: usize = 8;
 /// `q = exp(−1/σ²)`; over the ≤ 2·radius·σ + 1 pixels of a footprint this stays within a few
 /// ulps of the direct formula.
 #[inline(always)]
-fn weights<T: Float>(x: T, lo: usize, hi: usize, inv2s2: T, q: T, w: &mut [T], d: &mut [T]) -> usize {
+fn weights<T: Float>(
+    x: T,
+    lo: usize,
+    hi: usize,
+    inv2s2: T,
+    q: T,
+    w: &mut [T],
+    d: &mut [T],
+) -> usize {
     let n = hi - lo + 1;
     let npad = n.div_ceil(LANES) * LANES;
     let half = c::<T>(0.5);
@@ -259,16 +272,19 @@ fn tile_forward_impl<T: Float, const COVERAGE: bool>(
     k: &Consts<T>,
     tg: &TileGeom,
     s: usize,
-    list: &[u32],
-    uv: &[[T; 2]],
+    coords: &[[T; 2]],
     buf: &mut [T],
 ) -> Vec<T> {
     let stride = g.stride();
     let (zero, one) = (T::zero(), T::one());
     let nb = g.footprint_buf();
-    let (mut wx, mut wy, mut dx, mut dy) = (vec![zero; nb], vec![zero; nb], vec![zero; nb], vec![zero; nb]);
-    for &j in list {
-        let p = uv[j as usize];
+    let (mut wx, mut wy, mut dx, mut dy) = (
+        vec![zero; nb],
+        vec![zero; nb],
+        vec![zero; nb],
+        vec![zero; nb],
+    );
+    for &p in coords {
         let Some((x0, x1, y0, y1)) = g.clip(p, tg) else {
             continue;
         };
@@ -320,8 +336,7 @@ fn tile_backward_impl<T: Float, const COVERAGE: bool>(
     tg: &TileGeom,
     s: usize,
     width: usize,
-    list: &[u32],
-    uv: &[[T; 2]],
+    coords: &[[T; 2]],
     trans: &[T],
     grad_image: &[T],
 ) -> Vec<[f64; 2]> {
@@ -342,11 +357,15 @@ fn tile_backward_impl<T: Float, const COVERAGE: bool>(
         }
     }
     let nb = g.footprint_buf();
-    let (mut wx, mut wy, mut dx, mut dy) = (vec![zero; nb], vec![zero; nb], vec![zero; nb], vec![zero; nb]);
+    let (mut wx, mut wy, mut dx, mut dy) = (
+        vec![zero; nb],
+        vec![zero; nb],
+        vec![zero; nb],
+        vec![zero; nb],
+    );
     // A plain loop (no closure) so the body inherits the caller's target features.
-    let mut out = Vec::with_capacity(list.len());
-    for &j in list {
-        let p = uv[j as usize];
+    let mut out = Vec::with_capacity(coords.len());
+    for &p in coords {
         let Some((x0, x1, y0, y1)) = g.clip(p, tg) else {
             out.push([0.0, 0.0]);
             continue;
@@ -398,19 +417,26 @@ fn footprint_grad<T: Float, const COVERAGE: bool>(
             .zip(wx.chunks_exact(LANES))
             .zip(dx.chunks_exact(LANES))
         {
+            // Branch-free so the lanes vectorise: compute, then select.
+            let mut w = [zero; LANES];
             for l in 0..LANES {
                 let gr = wc[l] * wyr;
                 let a = (gr - k.eps) * k.inv1me;
-                let w = if COVERAGE {
-                    let w = hc[l] * gr / (one - a);
-                    if a > zero && a < k.amax { w } else { zero }
-                } else if a > zero {
-                    hc[l] * gr
+                let valid = if COVERAGE {
+                    (a > zero) & (a < k.amax)
                 } else {
-                    zero
+                    a > zero
                 };
-                su[l] = su[l] + w * dc[l];
-                sv[l] = sv[l] + w;
+                let v = if COVERAGE {
+                    hc[l] * gr / (one - a)
+                } else {
+                    hc[l] * gr
+                };
+                w[l] = if valid { v } else { zero };
+            }
+            for l in 0..LANES {
+                su[l] = su[l] + w[l] * dc[l];
+                sv[l] = sv[l] + w[l];
             }
         }
         let (mut ru, mut rv) = (zero, zero);
@@ -437,8 +463,8 @@ macro_rules! dispatch {
     };
 }
 
-dispatch!(tile_forward_avx2, tile_forward_impl, (g: &Geometry, k: &Consts<T>, tg: &TileGeom, s: usize, list: &[u32], uv: &[[T; 2]], buf: &mut [T]) -> Vec<T>);
-dispatch!(tile_backward_avx2, tile_backward_impl, (g: &Geometry, k: &Consts<T>, tg: &TileGeom, s: usize, width: usize, list: &[u32], uv: &[[T; 2]], trans: &[T], grad_image: &[T]) -> Vec<[f64; 2]>);
+dispatch!(tile_forward_avx2, tile_forward_impl, (g: &Geometry, k: &Consts<T>, tg: &TileGeom, s: usize, coords: &[[T; 2]], buf: &mut [T]) -> Vec<T>);
+dispatch!(tile_backward_avx2, tile_backward_impl, (g: &Geometry, k: &Consts<T>, tg: &TileGeom, s: usize, width: usize, coords: &[[T; 2]], trans: &[T], grad_image: &[T]) -> Vec<[f64; 2]>);
 
 fn has_avx2() -> bool {
     #[cfg(target_arch = "x86_64")]
@@ -458,17 +484,16 @@ fn tile_forward<T: Float, const COVERAGE: bool>(
     k: &Consts<T>,
     tg: &TileGeom,
     s: usize,
-    list: &[u32],
-    uv: &[[T; 2]],
+    coords: &[[T; 2]],
     buf: &mut [T],
 ) -> Vec<T> {
     #[cfg(target_arch = "x86_64")]
     if avx2 {
         // SAFETY: only reached when the CPU reports AVX2.
-        return unsafe { tile_forward_avx2::<T, COVERAGE>(g, k, tg, s, list, uv, buf) };
+        return unsafe { tile_forward_avx2::<T, COVERAGE>(g, k, tg, s, coords, buf) };
     }
     let _ = avx2;
-    tile_forward_impl::<T, COVERAGE>(g, k, tg, s, list, uv, buf)
+    tile_forward_impl::<T, COVERAGE>(g, k, tg, s, coords, buf)
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -479,8 +504,7 @@ fn tile_backward<T: Float, const COVERAGE: bool>(
     tg: &TileGeom,
     s: usize,
     width: usize,
-    list: &[u32],
-    uv: &[[T; 2]],
+    coords: &[[T; 2]],
     trans: &[T],
     grad_image: &[T],
 ) -> Vec<[f64; 2]> {
@@ -488,17 +512,20 @@ fn tile_backward<T: Float, const COVERAGE: bool>(
     if avx2 {
         // SAFETY: only reached when the CPU reports AVX2.
         return unsafe {
-            tile_backward_avx2::<T, COVERAGE>(g, k, tg, s, width, list, uv, trans, grad_image)
+            tile_backward_avx2::<T, COVERAGE>(g, k, tg, s, width, coords, trans, grad_image)
         };
     }
     let _ = avx2;
-    tile_backward_impl::<T, COVERAGE>(g, k, tg, s, width, list, uv, trans, grad_image)
+    tile_backward_impl::<T, COVERAGE>(g, k, tg, s, width, coords, trans, grad_image)
 }
 
 /// Forward: pooled image (row-major `height × width`) and the state for the reverse pass.
-pub fn forward<T: Float + Send + Sync>(grid: &SplatGrid, uv: Vec<[T; 2]>) -> (Vec<T>, SplatState<T>) {
+pub fn forward<T: Float + Send + Sync>(
+    grid: &SplatGrid,
+    uv: Vec<[T; 2]>,
+) -> (Vec<T>, SplatState<T>) {
     let g = grid.geometry();
-    let (tile_start, entries) = bin(&uv, &g);
+    let (tile_start, entries, coords) = bin(&uv, &g);
     let s = grid.supersample;
     let tl = g.tile_len();
     let coverage = grid.blend == Blend::Coverage;
@@ -513,11 +540,11 @@ pub fn forward<T: Float + Send + Sync>(grid: &SplatGrid, uv: Vec<[T; 2]>) -> (Ve
         .enumerate()
         .map(|(t, buf)| {
             let tg = g.tile(t, grid);
-            let list = &entries[tile_start[t]..tile_start[t + 1]];
+            let pts = &coords[tile_start[t]..tile_start[t + 1]];
             if coverage {
-                tile_forward::<T, true>(avx2, &g, &k, &tg, s, list, &uv, buf)
+                tile_forward::<T, true>(avx2, &g, &k, &tg, s, pts, buf)
             } else {
-                tile_forward::<T, false>(avx2, &g, &k, &tg, s, list, &uv, buf)
+                tile_forward::<T, false>(avx2, &g, &k, &tg, s, pts, buf)
             }
         })
         .collect();
@@ -538,13 +565,18 @@ pub fn forward<T: Float + Send + Sync>(grid: &SplatGrid, uv: Vec<[T; 2]>) -> (Ve
             uv,
             tile_start,
             entries,
+            coords,
             trans: bufs,
         },
     )
 }
 
 /// Reverse: `∂L/∂(u, v)` of every point from `∂L/∂image`.
-pub fn backward<T: Float + Send + Sync>(grid: &SplatGrid, state: &SplatState<T>, grad_image: &[T]) -> Vec<[f64; 2]> {
+pub fn backward<T: Float + Send + Sync>(
+    grid: &SplatGrid,
+    state: &SplatState<T>,
+    grad_image: &[T],
+) -> Vec<[f64; 2]> {
     let g = grid.geometry();
     let s = grid.supersample;
     let tl = g.tile_len();
@@ -552,24 +584,24 @@ pub fn backward<T: Float + Send + Sync>(grid: &SplatGrid, state: &SplatState<T>,
     let k = Consts::<T>::new(grid, &g);
     let n_tiles = g.tiles_x * g.tiles_y;
     let avx2 = has_avx2();
-    let (uv, entries, tile_start) = (&state.uv, &state.entries, &state.tile_start);
+    let (entries, coords, tile_start) = (&state.entries, &state.coords, &state.tile_start);
     let partials: Vec<Vec<[f64; 2]>> = (0..n_tiles)
         .into_par_iter()
         .map(|t| {
-            let list = &entries[tile_start[t]..tile_start[t + 1]];
-            if list.is_empty() {
+            let pts = &coords[tile_start[t]..tile_start[t + 1]];
+            if pts.is_empty() {
                 return Vec::new();
             }
             let tg = g.tile(t, grid);
             if coverage {
                 let trans = &state.trans[t * tl..(t + 1) * tl];
-                tile_backward::<T, true>(avx2, &g, &k, &tg, s, grid.width, list, uv, trans, grad_image)
+                tile_backward::<T, true>(avx2, &g, &k, &tg, s, grid.width, pts, trans, grad_image)
             } else {
-                tile_backward::<T, false>(avx2, &g, &k, &tg, s, grid.width, list, uv, &[], grad_image)
+                tile_backward::<T, false>(avx2, &g, &k, &tg, s, grid.width, pts, &[], grad_image)
             }
         })
         .collect();
-    let mut guv = vec![[0.0f64; 2]; uv.len()];
+    let mut guv = vec![[0.0f64; 2]; state.uv.len()];
     for (t, part) in partials.iter().enumerate() {
         for (&j, g) in entries[tile_start[t]..tile_start[t + 1]].iter().zip(part) {
             guv[j as usize][0] += g[0];

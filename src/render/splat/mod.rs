@@ -103,7 +103,10 @@ impl SplatConfig {
             ));
         }
         if !(self.sigma.is_finite() && self.sigma > 0.0) {
-            return Err(Error::param("sigma", format!("must be > 0, got {}", self.sigma)));
+            return Err(Error::param(
+                "sigma",
+                format!("must be > 0, got {}", self.sigma),
+            ));
         }
         if !(self.radius.is_finite() && self.radius >= 1.0 && self.radius <= 8.0) {
             return Err(Error::param(
@@ -172,7 +175,12 @@ pub fn forward<T: Float + Send + Sync>(
     }
     let tape = trajectories::run(&cfg.game, maps, seed)?;
     let kept = tape.kept_points();
-    let frame = frame::fit(&cfg.framing, &kept, cfg.width * cfg.supersample, cfg.height * cfg.supersample)?;
+    let frame = frame::fit(
+        &cfg.framing,
+        &kept,
+        cfg.width * cfg.supersample,
+        cfg.height * cfg.supersample,
+    )?;
     let uv: Vec<[T; 2]> = kept.iter().map(|p| frame.project(p)).collect();
     let grid = cfg.grid();
     let (image, splat) = kernel::forward(&grid, uv);

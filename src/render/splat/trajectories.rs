@@ -133,6 +133,9 @@ impl TrajectoryTape {
                 }
             }
         }
-        total.iter().map(|c| Affine2::from_coefficients(c)).collect()
+        total
+            .iter()
+            .map(|c| Affine2::from_coefficients(c))
+            .collect()
     }
 }

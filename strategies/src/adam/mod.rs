@@ -9,7 +9,7 @@
 //! ## References
 //! - Kingma & Ba, *Adam: A Method for Stochastic Optimization*, ICLR 2015.
 
-use argmin::core::{Error as ArgminError, State, KV, Problem, Solver};
+use argmin::core::{Error as ArgminError, KV, Problem, Solver, State};
 use serde::{Deserialize, Serialize};
 
 use crate::driver::{Differentiable, GradState, kv_of, to_argmin};
@@ -52,7 +52,10 @@ impl AdamConfig {
             }
         }
         if !(self.eps.is_finite() && self.eps > 0.0) {
-            return Err(Error::param("eps", format!("must be > 0, got {}", self.eps)));
+            return Err(Error::param(
+                "eps",
+                format!("must be > 0, got {}", self.eps),
+            ));
         }
         Ok(())
     }
@@ -135,11 +138,12 @@ pub(crate) fn adam_iteration<O: Differentiable>(
     perturb: impl FnOnce(&mut [f64]),
 ) -> Result<(GradState, KV), ArgminError> {
     let iter = state.get_iter();
-    let mut theta = state
-        .take_param()
-        .ok_or_else(|| ArgminError::msg("no initial parameters: configure the state with param(θ)"))?;
-    let mut eval = problem
-        .problem("loss_and_gradient", |p| p.evaluate(&theta, iter).map_err(to_argmin))?;
+    let mut theta = state.take_param().ok_or_else(|| {
+        ArgminError::msg("no initial parameters: configure the state with param(θ)")
+    })?;
+    let mut eval = problem.problem("loss_and_gradient", |p| {
+        p.evaluate(&theta, iter).map_err(to_argmin)
+    })?;
     if !eval.loss.is_finite() {
         return Err(to_argmin(Error::Numerical(format!(
             "loss became {} at iteration {iter}",
@@ -161,7 +165,11 @@ impl<O: Differentiable> Solver<O, GradState> for Adam {
         "Adam"
     }
 
-    fn next_iter(&mut self, problem: &mut Problem<O>, state: GradState) -> Result<(GradState, Option<KV>), ArgminError> {
+    fn next_iter(
+        &mut self,
+        problem: &mut Problem<O>,
+        state: GradState,
+    ) -> Result<(GradState, Option<KV>), ArgminError> {
         let (state, kv) = adam_iteration(self, problem, state, |_| {})?;
         Ok((state, Some(kv)))
     }
@@ -178,8 +186,16 @@ mod tests {
 
     impl Differentiable for Bowl {
         fn evaluate(&self, theta: &[f64], _iter: u64) -> Result<Evaluation> {
-            let loss = theta.iter().enumerate().map(|(i, t)| (t - i as f64).powi(2)).sum();
-            let grad = theta.iter().enumerate().map(|(i, t)| 2.0 * (t - i as f64)).collect();
+            let loss = theta
+                .iter()
+                .enumerate()
+                .map(|(i, t)| (t - i as f64).powi(2))
+                .sum();
+            let grad = theta
+                .iter()
+                .enumerate()
+                .map(|(i, t)| 2.0 * (t - i as f64))
+                .collect();
             Ok(Evaluation {
                 loss,
                 grad,

@@ -12,7 +12,7 @@
 //! - Djeacoumar et al., *Learning Image Fractals Using Chaotic Differentiable Point
 //!   Splatting* (the annealing baseline and the hybrid's annealing phases).
 
-use argmin::core::{Error as ArgminError, State, KV, KvValue, Problem, Solver};
+use argmin::core::{Error as ArgminError, KV, KvValue, Problem, Solver, State};
 use rand::{Rng, SeedableRng};
 use rand_distr::StandardNormal;
 use rand_xoshiro::Xoshiro256PlusPlus;
@@ -54,7 +54,10 @@ impl AnnealingConfig {
     /// Checks the hyper-parameters; the error names the one to change.
     pub fn validate(&self) -> Result<()> {
         if !(self.noise.is_finite() && self.noise >= 0.0) {
-            return Err(Error::param("noise", format!("must be ≥ 0, got {}", self.noise)));
+            return Err(Error::param(
+                "noise",
+                format!("must be ≥ 0, got {}", self.noise),
+            ));
         }
         if !(self.accept_scale.is_finite() && self.accept_scale > 0.0) {
             return Err(Error::param(
@@ -92,7 +95,9 @@ pub fn metropolis_phase<O: Anneal + Differentiable>(
     let tau = (1.0 - frac).max(0.0);
     let std = cfg.noise * tau;
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(ifslab::chaos::mix_seed(seed, stream));
-    let mut cost = problem.problem("anneal_cost", |p| p.anneal_cost(theta, stream).map_err(to_argmin))?;
+    let mut cost = problem.problem("anneal_cost", |p| {
+        p.anneal_cost(theta, stream).map_err(to_argmin)
+    })?;
     let mut accepted = 0;
     for _ in 0..cfg.candidates {
         let mut cand: Vec<f64> = theta
@@ -103,7 +108,9 @@ pub fn metropolis_phase<O: Anneal + Differentiable>(
             p.project(&mut cand);
             Ok(())
         })?;
-        let c = problem.problem("anneal_cost", |p| p.anneal_cost(&cand, stream).map_err(to_argmin))?;
+        let c = problem.problem("anneal_cost", |p| {
+            p.anneal_cost(&cand, stream).map_err(to_argmin)
+        })?;
         let delta = c - cost;
         let u: f64 = rng.random();
         let accept = c.is_finite()
@@ -147,7 +154,11 @@ impl<O: Anneal + Differentiable> Solver<O, GradState> for SimulatedAnnealing {
         "SimulatedAnnealing"
     }
 
-    fn next_iter(&mut self, problem: &mut Problem<O>, mut state: GradState) -> Result<(GradState, Option<KV>), ArgminError> {
+    fn next_iter(
+        &mut self,
+        problem: &mut Problem<O>,
+        mut state: GradState,
+    ) -> Result<(GradState, Option<KV>), ArgminError> {
         let t = state.get_iter();
         let mut theta = state
             .take_param()

@@ -54,7 +54,10 @@ impl<S: Serialize + DeserializeOwned> Checkpoint<S, GradState> for JsonCheckpoin
             ))
         })?;
         let (solver, mut state): (S, GradState) = serde_json::from_slice(&bytes).map_err(|e| {
-            ArgminError::msg(format!("checkpoint {} is corrupt: {e}", self.path.display()))
+            ArgminError::msg(format!(
+                "checkpoint {} is corrupt: {e}",
+                self.path.display()
+            ))
         })?;
         // The saved state may have stopped at its own limit: continue to this run's.
         state.max_iters = self.max_iters;

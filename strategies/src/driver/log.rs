@@ -25,7 +25,11 @@ pub struct CsvLog {
 impl CsvLog {
     /// Opens the log. Without `resume_from` the file is created afresh with a header; with
     /// `resume_from = Some(k)` the rows of iterations ≥ k are dropped and new rows appended.
-    pub fn open(path: impl Into<PathBuf>, columns: &[&str], resume_from: Option<u64>) -> Result<Self> {
+    pub fn open(
+        path: impl Into<PathBuf>,
+        columns: &[&str],
+        resume_from: Option<u64>,
+    ) -> Result<Self> {
         let path = path.into();
         let header = std::iter::once("iter")
             .chain(std::iter::once("loss"))
@@ -39,7 +43,11 @@ impl CsvLog {
             Some(k) => {
                 let kept = kept_rows(&path, &header, k)?;
                 if let Some(last) = kept.last() {
-                    offset_seconds = last.rsplit(',').next().and_then(|s| s.parse().ok()).unwrap_or(0.0);
+                    offset_seconds = last
+                        .rsplit(',')
+                        .next()
+                        .and_then(|s| s.parse().ok())
+                        .unwrap_or(0.0);
                 }
                 let mut text = format!("{header}\n");
                 for row in kept {
@@ -70,11 +78,17 @@ impl CsvLog {
 
 /// Rows of `path` (header checked) whose iteration is below `k`.
 fn kept_rows(path: &Path, header: &str, k: u64) -> Result<Vec<String>> {
-    let f = File::open(path).map_err(|e| Error::file(path, format!("cannot resume the log: {e}")))?;
+    let f =
+        File::open(path).map_err(|e| Error::file(path, format!("cannot resume the log: {e}")))?;
     let mut lines = BufReader::new(f).lines();
     match lines.next() {
         Some(Ok(h)) if h == header => {}
-        _ => return Err(Error::file(path, "log header does not match this run's loss terms")),
+        _ => {
+            return Err(Error::file(
+                path,
+                "log header does not match this run's loss terms",
+            ));
+        }
     }
     let n_fields = header.split(',').count();
     let mut out = Vec::new();
@@ -99,7 +113,10 @@ impl Observe<GradState> for CsvLog {
             let v = kv.get(c).and_then(|v| v.get_float()).unwrap_or(f64::NAN);
             row.push_str(&format!(",{v}"));
         }
-        row.push_str(&format!(",{:.3}\n", self.offset_seconds + self.start.elapsed().as_secs_f64()));
+        row.push_str(&format!(
+            ",{:.3}\n",
+            self.offset_seconds + self.start.elapsed().as_secs_f64()
+        ));
         self.file.write_all(row.as_bytes())?;
         self.file.flush()?;
         Ok(())

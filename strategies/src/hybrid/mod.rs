@@ -11,7 +11,7 @@
 //! ## References
 //! - Djeacoumar et al., *Learning Image Fractals Using Chaotic Differentiable Point Splatting*.
 
-use argmin::core::{Error as ArgminError, State, KV, KvValue, Problem, Solver};
+use argmin::core::{Error as ArgminError, KV, KvValue, Problem, Solver, State};
 use serde::{Deserialize, Serialize};
 
 use crate::adam::{Adam, AdamConfig, adam_iteration};
@@ -106,7 +106,11 @@ impl<O: Anneal + Differentiable> Solver<O, GradState> for Hybrid {
         "Hybrid"
     }
 
-    fn next_iter(&mut self, problem: &mut Problem<O>, mut state: GradState) -> Result<(GradState, Option<KV>), ArgminError> {
+    fn next_iter(
+        &mut self,
+        problem: &mut Problem<O>,
+        mut state: GradState,
+    ) -> Result<(GradState, Option<KV>), ArgminError> {
         let t = state.get_iter();
         let mut phase = None;
         if self.anneals_at(t) {
@@ -116,7 +120,14 @@ impl<O: Anneal + Differentiable> Solver<O, GradState> for Hybrid {
             let frac = t as f64 / self.max_iters as f64;
             // Streams of annealing phases are kept apart from the gradient iterations'.
             let stream = t | (1 << 62);
-            let st = metropolis_phase(problem, &mut theta, &self.config.annealing, frac, self.seed, stream)?;
+            let st = metropolis_phase(
+                problem,
+                &mut theta,
+                &self.config.annealing,
+                frac,
+                self.seed,
+                stream,
+            )?;
             self.phases += 1;
             self.accepted += st.accepted as u64;
             self.adam.reset();

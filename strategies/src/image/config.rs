@@ -14,6 +14,7 @@ use crate::adam::AdamConfig;
 use crate::annealing::AnnealingConfig;
 use crate::error::{Error, Result};
 use crate::hybrid::HybridConfig;
+use crate::image::init::InitKind;
 use crate::image::target::Polarity;
 use crate::noisy::NoisyConfig;
 
@@ -47,7 +48,9 @@ pub struct ModelConfig {
     pub maps: usize,
     /// Parameterisation of θ.
     pub parameterisation: ParamKind,
-    /// Seed of the initial code (Anderson–Farrell sampler); default: the run's seed.
+    /// How the initial code is chosen (random or em) when `init_code` is not given.
+    pub init: InitKind,
+    /// Seed of the initial code (Anderson–Farrell sampler, EM); default: the run's seed.
     pub init_seed: Option<u64>,
     /// Start from this code instead (a code file or built-in name; it must have `maps` maps).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -61,6 +64,7 @@ impl Default for ModelConfig {
         ModelConfig {
             maps: 3,
             parameterisation: ParamKind::Svd,
+            init: InitKind::Random,
             init_seed: None,
             init_code: None,
             init_noise: 0.0,
@@ -259,7 +263,9 @@ impl InversionConfig {
     /// Checks every field before anything runs; errors name the field.
     pub fn validate(&self) -> Result<()> {
         if self.iterations == 0 {
-            return Err(Error::InvalidInput("config field `iterations`: must be at least 1".into()));
+            return Err(Error::InvalidInput(
+                "config field `iterations`: must be at least 1".into(),
+            ));
         }
         let t = &self.target;
         match (&t.image, &t.code) {
@@ -294,7 +300,10 @@ impl InversionConfig {
             )));
         }
         in_section("generator", self.game().validate().map_err(Error::from))?;
-        in_section("renderer", self.splat_config().validate().map_err(Error::from))?;
+        in_section(
+            "renderer",
+            self.splat_config().validate().map_err(Error::from),
+        )?;
         in_section("loss", self.loss.validate().map_err(Error::from))?;
         in_section(
             "strategy",
@@ -353,15 +362,27 @@ mod tests {
 
     #[test]
     fn errors_name_the_field() {
-        let e = |s: &str| InversionConfig::from_toml(s, Path::new("c.toml")).unwrap_err().to_string();
+        let e = |s: &str| {
+            InversionConfig::from_toml(s, Path::new("c.toml"))
+                .unwrap_err()
+                .to_string()
+        };
         assert!(e(&format!("{MINIMAL}[renderer]\nsigma = -1\n")).contains("renderer.sigma"));
-        assert!(e(&format!("{MINIMAL}[strategy]\nkind = \"hybrid\"\nanneal_every = 0\n")).contains("anneal_every"));
+        assert!(
+            e(&format!(
+                "{MINIMAL}[strategy]\nkind = \"hybrid\"\nanneal_every = 0\n"
+            ))
+            .contains("anneal_every")
+        );
         assert!(e(&format!("{MINIMAL}[strategy]\nkind = \"magic\"\n")).contains("magic"));
         assert!(e(&format!("{MINIMAL}[model]\nmapz = 3\n")).contains("mapz"));
         assert!(e(&format!("{MINIMAL}[loss]\nlpips_weight = -2\n")).contains("lpips_weight"));
         assert!(e("iterations = 0\n[target]\ncode = \"fern\"\n").contains("iterations"));
         assert!(e("iterations = 5\n[target]\n").contains("[target]"));
-        assert!(e("iterations = 5\n[target]\ncode = \"fern\"\nimage = \"x.png\"\n").contains("not both"));
+        assert!(
+            e("iterations = 5\n[target]\ncode = \"fern\"\nimage = \"x.png\"\n")
+                .contains("not both")
+        );
         assert!(e("this is = = not toml").contains("c.toml"));
     }
 }

@@ -2,6 +2,7 @@
 //! target image, with any of the gradient or annealing strategies.
 //!
 //! - [`target`]: load and frame targets the way the model frames its points;
+//! - [`init`]: the starting code (random, given, or fitted by EM to the target's points);
 //! - [`problem`]: θ → maps → splat → composite loss and its gradient;
 //! - [`config`]: the validated TOML configuration of a run;
 //! - [`run`]: initial code, solver, executor, checkpoint and resume.
@@ -10,11 +11,13 @@
 //! - Djeacoumar et al., *Learning Image Fractals Using Chaotic Differentiable Point Splatting*.
 
 pub mod config;
+pub mod init;
 pub mod problem;
 pub mod run;
 pub mod target;
 
 pub use config::{InversionConfig, StrategyConfig, TargetConfig};
+pub use init::{InitKind, initial_theta};
 pub use problem::ImageProblem;
-pub use run::{InversionOutcome, initial_theta, run_inversion};
+pub use run::{InversionOutcome, run_inversion};
 pub use target::{Polarity, frame_target, load_target};

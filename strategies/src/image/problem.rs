@@ -92,8 +92,9 @@ fn tensor_err(e: candle_core::Error) -> Error {
 impl Differentiable for ImageProblem {
     fn evaluate(&self, theta: &[f64], iter: u64) -> Result<Evaluation> {
         let maps = self.param.decode(theta)?;
-        let var = Var::from_tensor(&maps_to_tensor(&maps, DType::F32, &Device::Cpu).map_err(tensor_err)?)
-            .map_err(tensor_err)?;
+        let var =
+            Var::from_tensor(&maps_to_tensor(&maps, DType::F32, &Device::Cpu).map_err(tensor_err)?)
+                .map_err(tensor_err)?;
         let op = SplatOp::new(self.splat.clone(), mix_seed(self.seed, iter));
         let pred = var.as_tensor().apply_op1(op).map_err(tensor_err)?;
         let ev = self.objective.evaluate(&pred, &maps)?;

@@ -6,11 +6,7 @@ use std::time::Instant;
 
 use argmin::core::observers::{Observe, ObserverMode};
 use argmin::core::{Error as ArgminError, Executor, KV, Solver, State};
-use ifslab::model::random::sample_code;
-use ifslab::model::{Affine2, IfsCode, Parameterisation, library};
-use rand::{Rng, SeedableRng};
-use rand_distr::StandardNormal;
-use rand_xoshiro::Xoshiro256PlusPlus;
+use ifslab::model::Affine2;
 use serde::{Serialize, de::DeserializeOwned};
 
 use crate::adam::Adam;
@@ -19,6 +15,7 @@ use crate::driver::{CsvLog, GradState, JsonCheckpoint};
 use crate::error::{Error, Result};
 use crate::hybrid::Hybrid;
 use crate::image::config::{InversionConfig, StrategyConfig};
+use crate::image::init::initial_theta;
 use crate::image::problem::{ImageProblem, TERMS};
 use crate::noisy::NoisyAdam;
 
@@ -46,51 +43,16 @@ pub struct InversionOutcome {
     pub log: PathBuf,
 }
 
-/// The starting θ: the code `model.init_code` if given, else an Anderson–Farrell random code
-/// of `model.maps` maps (seeded by `model.init_seed`, else the run's seed) with offsets scaled
-/// by 0.9 into the SVD parameterisation's open square; plus `model.init_noise` Gaussian noise.
-pub fn initial_theta(cfg: &InversionConfig, param: &dyn Parameterisation) -> Result<Vec<f64>> {
-    let n = cfg.model.maps;
-    let seed = cfg.model.init_seed.unwrap_or(cfg.seed);
-    let maps: Vec<Affine2> = match &cfg.model.init_code {
-        Some(spec) => {
-            let code = if std::path::Path::new(spec).is_file() {
-                IfsCode::load(spec)?
-            } else {
-                library::builtin(spec)?
-            };
-            let maps = code.affine2()?;
-            if maps.len() != n {
-                return Err(Error::InvalidInput(format!(
-                    "config field `model.init_code`: `{spec}` has {} maps but `model.maps` is {n}",
-                    maps.len()
-                )));
-            }
-            maps
-        }
-        None if n >= 2 => sample_code(n, seed)?
-            .maps
-            .into_iter()
-            .map(|m| Affine2 { m: m.m, b: m.b * 0.9 })
-            .collect(),
-        None => vec![Affine2::new(0.5, 0.0, 0.0, 0.5, 0.1, 0.1)],
-    };
-    let mut theta = param.encode(&maps)?;
-    if cfg.model.init_noise > 0.0 {
-        let mut rng = Xoshiro256PlusPlus::seed_from_u64(ifslab::chaos::mix_seed(seed, u64::MAX));
-        for t in theta.iter_mut() {
-            *t += cfg.model.init_noise * rng.sample::<f64, _>(StandardNormal);
-        }
-        param.project(&mut theta);
-    }
-    Ok(theta)
-}
-
 /// Lets a boxed observer be handed to argmin's executor.
 struct Boxed(Box<dyn Observe<GradState> + Send>);
 
 impl Observe<GradState> for Boxed {
-    fn observe_init(&mut self, name: &str, state: &GradState, kv: &KV) -> std::result::Result<(), ArgminError> {
+    fn observe_init(
+        &mut self,
+        name: &str,
+        state: &GradState,
+        kv: &KV,
+    ) -> std::result::Result<(), ArgminError> {
         self.0.observe_init(name, state, kv)
     }
     fn observe_iter(&mut self, state: &GradState, kv: &KV) -> std::result::Result<(), ArgminError> {
@@ -123,24 +85,51 @@ pub fn run_inversion(
         )));
     }
     let resume_from = if resume {
-        let bytes = std::fs::read(&ckpt_path).map_err(|e| Error::file(&ckpt_path, format!("cannot resume: {e}")))?;
+        let bytes = std::fs::read(&ckpt_path)
+            .map_err(|e| Error::file(&ckpt_path, format!("cannot resume: {e}")))?;
         let v: serde_json::Value = serde_json::from_slice(&bytes)
             .map_err(|e| Error::file(&ckpt_path, format!("checkpoint is corrupt: {e}")))?;
-        Some(v[1]["iter"].as_u64().ok_or_else(|| Error::file(&ckpt_path, "checkpoint has no iteration count"))?)
+        Some(
+            v[1]["iter"]
+                .as_u64()
+                .ok_or_else(|| Error::file(&ckpt_path, "checkpoint has no iteration count"))?,
+        )
     } else {
         None
     };
     let param = cfg.model.parameterisation.build();
-    let theta0 = initial_theta(cfg, param.as_ref())?;
-    let problem = ImageProblem::new(param, cfg.splat_config(), cfg.loss.clone(), target, cfg.seed)?;
+    let theta0 = initial_theta(cfg, param.as_ref(), &target)?;
+    let problem = ImageProblem::new(
+        param,
+        cfg.splat_config(),
+        cfg.loss.clone(),
+        target,
+        cfg.seed,
+    )?;
     let lpips_note = problem.lpips_skip_reason().map(str::to_owned);
     let log = CsvLog::open(dir.join(LOG_FILE), &TERMS, resume_from)?;
     let ckpt = JsonCheckpoint::new(&ckpt_path, cfg.checkpoint_every, resume, cfg.iterations);
     let t = cfg.iterations;
     let start = Instant::now();
     let res = match &cfg.strategy {
-        StrategyConfig::Adam(c) => execute(problem, Adam::new(c.clone())?, theta0, t, ckpt, log, observers),
-        StrategyConfig::Hybrid(c) => execute(problem, Hybrid::new(c.clone(), t, cfg.seed)?, theta0, t, ckpt, log, observers),
+        StrategyConfig::Adam(c) => execute(
+            problem,
+            Adam::new(c.clone())?,
+            theta0,
+            t,
+            ckpt,
+            log,
+            observers,
+        ),
+        StrategyConfig::Hybrid(c) => execute(
+            problem,
+            Hybrid::new(c.clone(), t, cfg.seed)?,
+            theta0,
+            t,
+            ckpt,
+            log,
+            observers,
+        ),
         StrategyConfig::Annealing(c) => execute(
             problem,
             SimulatedAnnealing::new(c.clone(), t, cfg.seed)?,
@@ -150,7 +139,15 @@ pub fn run_inversion(
             log,
             observers,
         ),
-        StrategyConfig::Noisy(c) => execute(problem, NoisyAdam::new(c.clone(), cfg.seed)?, theta0, t, ckpt, log, observers),
+        StrategyConfig::Noisy(c) => execute(
+            problem,
+            NoisyAdam::new(c.clone(), cfg.seed)?,
+            theta0,
+            t,
+            ckpt,
+            log,
+            observers,
+        ),
     }?;
     let (problem, state) = res;
     let theta = state

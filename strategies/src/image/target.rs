@@ -4,9 +4,9 @@
 
 use std::path::Path;
 
-use image::{ImageBuffer, Luma, imageops};
 use ifslab::render::FIT_FILL;
 use ifslab::render::image_io::{GreyImage, load_grey};
+use image::{ImageBuffer, Luma, imageops};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
@@ -39,7 +39,10 @@ pub fn load_target(path: &Path, size: usize, polarity: Polarity) -> Result<Vec<f
 /// Frames a grey image into a `size × size` target (values in [0, 1], shape bright).
 pub fn frame_target(img: &GreyImage, size: usize, polarity: Polarity) -> Result<Vec<f32>> {
     if size < 8 {
-        return Err(Error::param("size", format!("targets need at least 8×8 pixels, got {size}")));
+        return Err(Error::param(
+            "size",
+            format!("targets need at least 8×8 pixels, got {size}"),
+        ));
     }
     let (w, h) = (img.width as usize, img.height as usize);
     let border_mean = {
@@ -67,7 +70,11 @@ pub fn frame_target(img: &GreyImage, size: usize, polarity: Polarity) -> Result<
         .collect();
     let max = v.iter().copied().fold(0.0f32, f32::max);
     if max < 0.05 {
-        let what = if invert { "all white (or uniformly light)" } else { "all black (or uniformly dark)" };
+        let what = if invert {
+            "all white (or uniformly light)"
+        } else {
+            "all black (or uniformly dark)"
+        };
         return Err(Error::InvalidInput(format!(
             "the target is empty: it is {what}, so there is no shape to fit"
         )));
@@ -91,9 +98,10 @@ pub fn frame_target(img: &GreyImage, size: usize, polarity: Polarity) -> Result<
                 .into(),
         ));
     }
-    let crop: ImageBuffer<Luma<f32>, Vec<f32>> = ImageBuffer::from_fn(bw as u32, bh as u32, |x, y| {
-        Luma([v[(y0 + y as usize) * w + x0 + x as usize]])
-    });
+    let crop: ImageBuffer<Luma<f32>, Vec<f32>> =
+        ImageBuffer::from_fn(bw as u32, bh as u32, |x, y| {
+            Luma([v[(y0 + y as usize) * w + x0 + x as usize]])
+        });
     let scale = FIT_FILL * size as f64 / bw.max(bh) as f64;
     let (nw, nh) = (
         ((bw as f64 * scale).round() as u32).max(1),
@@ -116,31 +124,50 @@ mod tests {
         GreyImage {
             width: w,
             height: h,
-            values: (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| f(x, y)).collect(),
+            values: (0..h)
+                .flat_map(|y| (0..w).map(move |x| (x, y)))
+                .map(|(x, y)| f(x, y))
+                .collect(),
         }
     }
 
     #[test]
     fn dark_shape_on_white_is_inverted_centred_and_scaled() {
         // A dark 20×10 bar at the top-left of a white 100×80 image.
-        let img = image(100, 80, |x, y| if (5..25).contains(&x) && (3..13).contains(&y) { 0.0 } else { 1.0 });
+        let img = image(100, 80, |x, y| {
+            if (5..25).contains(&x) && (3..13).contains(&y) {
+                0.0
+            } else {
+                1.0
+            }
+        });
         let t = frame_target(&img, 64, Polarity::Auto).unwrap();
-        let lit: Vec<(usize, usize)> = (0..64 * 64).filter(|&i| t[i] > 0.5).map(|i| (i % 64, i / 64)).collect();
+        let lit: Vec<(usize, usize)> = (0..64 * 64)
+            .filter(|&i| t[i] > 0.5)
+            .map(|i| (i % 64, i / 64))
+            .collect();
         let (xs, ys): (Vec<_>, Vec<_>) = lit.iter().copied().unzip();
         let (x0, x1) = (*xs.iter().min().unwrap(), *xs.iter().max().unwrap());
         let (y0, y1) = (*ys.iter().min().unwrap(), *ys.iter().max().unwrap());
         assert!((x1 - x0 + 1).abs_diff(48) <= 1, "width {}", x1 - x0 + 1);
         assert!((y1 - y0 + 1).abs_diff(24) <= 1, "height {}", y1 - y0 + 1);
-        assert!((x0 + x1).abs_diff(63) <= 1 && (y0 + y1).abs_diff(63) <= 1, "not centred");
+        assert!(
+            (x0 + x1).abs_diff(63) <= 1 && (y0 + y1).abs_diff(63) <= 1,
+            "not centred"
+        );
     }
 
     #[test]
     fn empty_targets_are_refused() {
         let white = image(40, 40, |_, _| 1.0);
-        let e = frame_target(&white, 32, Polarity::Auto).unwrap_err().to_string();
+        let e = frame_target(&white, 32, Polarity::Auto)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("all white"), "{e}");
         let black = image(40, 40, |_, _| 0.0);
-        let e = frame_target(&black, 32, Polarity::Auto).unwrap_err().to_string();
+        let e = frame_target(&black, 32, Polarity::Auto)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("all black"), "{e}");
     }
 }

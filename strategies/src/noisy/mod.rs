@@ -5,7 +5,7 @@
 //! - Neelakantan et al., *Adding Gradient Noise Improves Learning for Very Deep Networks*, 2015.
 //! - Djeacoumar et al., *Learning Image Fractals Using Chaotic Differentiable Point Splatting*.
 
-use argmin::core::{Error as ArgminError, State, KV, KvValue, Problem, Solver};
+use argmin::core::{Error as ArgminError, KV, KvValue, Problem, Solver, State};
 use rand::{Rng, SeedableRng};
 use rand_distr::StandardNormal;
 use rand_xoshiro::Xoshiro256PlusPlus;
@@ -42,10 +42,16 @@ impl NoisyConfig {
     pub fn validate(&self) -> Result<()> {
         self.adam.validate()?;
         if !(self.eta.is_finite() && self.eta >= 0.0) {
-            return Err(Error::param("eta", format!("must be ≥ 0, got {}", self.eta)));
+            return Err(Error::param(
+                "eta",
+                format!("must be ≥ 0, got {}", self.eta),
+            ));
         }
         if !(self.gamma.is_finite() && self.gamma >= 0.0) {
-            return Err(Error::param("gamma", format!("must be ≥ 0, got {}", self.gamma)));
+            return Err(Error::param(
+                "gamma",
+                format!("must be ≥ 0, got {}", self.gamma),
+            ));
         }
         Ok(())
     }
@@ -76,10 +82,15 @@ impl<O: Differentiable> Solver<O, GradState> for NoisyAdam {
         "NoisyAdam"
     }
 
-    fn next_iter(&mut self, problem: &mut Problem<O>, state: GradState) -> Result<(GradState, Option<KV>), ArgminError> {
+    fn next_iter(
+        &mut self,
+        problem: &mut Problem<O>,
+        state: GradState,
+    ) -> Result<(GradState, Option<KV>), ArgminError> {
         let t = state.get_iter();
         let std = (self.config.eta / (1.0 + t as f64).powf(self.config.gamma)).sqrt();
-        let mut rng = Xoshiro256PlusPlus::seed_from_u64(ifslab::chaos::mix_seed(self.seed, t | (1 << 61)));
+        let mut rng =
+            Xoshiro256PlusPlus::seed_from_u64(ifslab::chaos::mix_seed(self.seed, t | (1 << 61)));
         let (state, mut kv) = adam_iteration(&mut self.adam, problem, state, |g| {
             for x in g.iter_mut() {
                 *x += std * rng.sample::<f64, _>(StandardNormal);
