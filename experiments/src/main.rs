@@ -17,6 +17,8 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// Recover a fractal from its render with no input files: the quick tour.
+    Demo(cmd::demo::Args),
     /// Render a code file or a built-in code to a PNG with the evaluation renderer.
     Render(cmd::render::Args),
     /// Draw random codes with the Anderson–Farrell sampler.
@@ -36,6 +38,7 @@ enum Command {
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
+        Command::Demo(a) => cmd::demo::run(a),
         Command::Render(a) => cmd::render::run(a),
         Command::Sample(a) => cmd::sample::run(a),
         Command::Codes => cmd::codes::run(),

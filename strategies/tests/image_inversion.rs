@@ -88,7 +88,7 @@ fn adam_on_the_naive_parameterisation_recovers_a_perturbed_code() {
         maps: 3,
         parameterisation: ParamKind::Naive,
         init_code: Some("sierpinski".into()),
-        init_noise: 0.05,
+        init_noise: 0.03,
         ..ModelConfig::default()
     };
     let dir = tempfile::tempdir().unwrap();
@@ -107,4 +107,116 @@ fn adam_on_the_naive_parameterisation_recovers_a_perturbed_code() {
         after > 0.8 && after > before + 0.1,
         "IoU before {before:.3}, after {after:.3}"
     );
+}
+
+/// The hybrid (EM start, cold annealing phases) recovers the Sierpiński triangle from its
+/// 64² render in 300 iterations for every seed tried. A perfect recovery scores IoU ≈ 1 on
+/// these masks; a wrong attractor framed the same way scores 0.1–0.35 (random starts).
+#[test]
+fn hybrid_recovers_the_sierpinski_triangle_across_seeds() {
+    use ifslab_strategies::annealing::AnnealingConfig;
+    use ifslab_strategies::hybrid::HybridConfig;
+    use ifslab_strategies::image::InitKind;
+    let size = 64;
+    let t = target("sierpinski", size);
+    for seed in [0, 1, 2] {
+        let mut cfg = base_config(
+            size,
+            300,
+            StrategyConfig::Hybrid(HybridConfig {
+                anneal_every: 50,
+                annealing: AnnealingConfig {
+                    temperature: 0.02,
+                    noise: 0.05,
+                    candidates: 5,
+                    ..AnnealingConfig::default()
+                },
+                ..HybridConfig::default()
+            }),
+        );
+        cfg.seed = seed;
+        cfg.model.init = InitKind::Em;
+        let dir = tempfile::tempdir().unwrap();
+        let out = run_inversion(&cfg, t.clone(), dir.path(), false, vec![]).unwrap();
+        let iou = iou_of(&out.maps, &t, size);
+        eprintln!("seed {seed}: IoU {iou:.3}");
+        assert!(iou > 0.65, "seed {seed}: IoU {iou:.3}");
+    }
+}
+
+/// A run stopped after a checkpoint and resumed ends with bit-identical parameters to a run
+/// that was never stopped, for every strategy (their solver state, Adam moments and
+/// annealing schedules, all go through the checkpoint).
+#[test]
+fn resume_is_bit_identical() {
+    use argmin::core::observers::Observe;
+    use argmin::core::{Error as ArgminError, KV, State};
+    use ifslab_strategies::annealing::AnnealingConfig;
+    use ifslab_strategies::driver::GradState;
+    use ifslab_strategies::hybrid::HybridConfig;
+    use ifslab_strategies::noisy::NoisyConfig;
+
+    /// Fails the run at a given iteration, like a crash.
+    struct Crash(u64);
+    impl Observe<GradState> for Crash {
+        fn observe_iter(&mut self, state: &GradState, _kv: &KV) -> Result<(), ArgminError> {
+            if state.get_iter() == self.0 {
+                return Err(ArgminError::msg("simulated crash"));
+            }
+            Ok(())
+        }
+    }
+
+    let size = 32;
+    let t = target("sierpinski", size);
+    let strategies = [
+        StrategyConfig::Adam(AdamConfig::default()),
+        StrategyConfig::Hybrid(HybridConfig {
+            anneal_every: 4,
+            annealing: AnnealingConfig {
+                candidates: 2,
+                ..AnnealingConfig::default()
+            },
+            ..HybridConfig::default()
+        }),
+        StrategyConfig::Annealing(AnnealingConfig::default()),
+        StrategyConfig::Noisy(NoisyConfig::default()),
+    ];
+    for strategy in strategies {
+        let mut cfg = base_config(size, 20, strategy);
+        cfg.generator.trajectories = 100;
+        cfg.checkpoint_every = 5;
+        let name = cfg.strategy.name();
+        let whole = tempfile::tempdir().unwrap();
+        let full = run_inversion(&cfg, t.clone(), whole.path(), false, vec![]).unwrap();
+
+        let split = tempfile::tempdir().unwrap();
+        let crashed = run_inversion(
+            &cfg,
+            t.clone(),
+            split.path(),
+            false,
+            vec![Box::new(Crash(12))],
+        );
+        assert!(
+            crashed.is_err(),
+            "{name}: the simulated crash must stop the run"
+        );
+        // A fresh run into a folder with a checkpoint is refused, nothing is overwritten.
+        assert!(run_inversion(&cfg, t.clone(), split.path(), false, vec![]).is_err());
+        let resumed = run_inversion(&cfg, t.clone(), split.path(), true, vec![]).unwrap();
+        assert_eq!(resumed.iterations, 20, "{name}");
+        assert_eq!(
+            resumed.theta, full.theta,
+            "{name}: resumed θ differs from the uninterrupted run"
+        );
+        // The log has one row per iteration, none duplicated by the replay after the crash.
+        let log = std::fs::read_to_string(split.path().join("log.csv")).unwrap();
+        let iters: Vec<u64> = log
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').next().unwrap().parse().unwrap())
+            .collect();
+        assert_eq!(iters, (0..20).collect::<Vec<u64>>(), "{name}");
+    }
 }

@@ -1,6 +1,7 @@
 //! One module per subcommand: its clap `Args` and a `run` function.
 
 pub mod codes;
+pub mod demo;
 pub mod fit_points;
 pub mod invert;
 pub mod render;

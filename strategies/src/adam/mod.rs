@@ -27,6 +27,9 @@ pub struct AdamConfig {
     pub beta2: f64,
     /// Denominator guard.
     pub eps: f64,
+    /// The learning rate decays linearly to `lr·final_lr_factor` over the run (1: constant,
+    /// as in the paper).
+    pub final_lr_factor: f64,
 }
 
 impl Default for AdamConfig {
@@ -36,6 +39,7 @@ impl Default for AdamConfig {
             beta1: 0.9,
             beta2: 0.999,
             eps: 1e-8,
+            final_lr_factor: 1.0,
         }
     }
 }
@@ -94,8 +98,13 @@ impl Adam {
         self.t = 0;
     }
 
-    /// One update of θ along `grad`.
+    /// One update of θ along `grad` with the base learning rate.
     pub fn step(&mut self, theta: &mut [f64], grad: &[f64]) -> Result<()> {
+        self.step_scaled(theta, grad, 1.0)
+    }
+
+    /// One update of θ along `grad` with the learning rate scaled by `lr_scale`.
+    pub fn step_scaled(&mut self, theta: &mut [f64], grad: &[f64], lr_scale: f64) -> Result<()> {
         if grad.len() != theta.len() {
             return Err(Error::InvalidInput(format!(
                 "gradient has {} entries for {} parameters",
@@ -123,7 +132,7 @@ impl Adam {
             self.v[i] = c.beta2 * self.v[i] + (1.0 - c.beta2) * grad[i] * grad[i];
             let mh = self.m[i] / b1t;
             let vh = self.v[i] / b2t;
-            theta[i] -= c.lr * mh / (vh.sqrt() + c.eps);
+            theta[i] -= lr_scale * c.lr * mh / (vh.sqrt() + c.eps);
         }
         Ok(())
     }
@@ -151,7 +160,10 @@ pub(crate) fn adam_iteration<O: Differentiable>(
         ))));
     }
     perturb(&mut eval.grad);
-    adam.step(&mut theta, &eval.grad).map_err(to_argmin)?;
+    let frac = iter as f64 / state.get_max_iters().max(1) as f64;
+    let lr_scale = 1.0 - (1.0 - adam.config.final_lr_factor) * frac.min(1.0);
+    adam.step_scaled(&mut theta, &eval.grad, lr_scale)
+        .map_err(to_argmin)?;
     problem.problem("project", |p| {
         p.project(&mut theta);
         Ok(())

@@ -3,7 +3,8 @@
 //! Each iteration proposes `θ' = θ + N(0, s²)` with `s = noise·(1 − t/T)`, evaluates both
 //! θ and θ' on the same fresh chaos-game trajectories (common random numbers, so the
 //! comparison sees the codes' difference rather than sampling noise), and accepts if
-//! `ΔMSE ≤ 0` or with probability `exp(−scale·ΔMSE/τ)`, `τ = 1 − t/T` (Metropolis). argmin's
+//! `ΔMSE ≤ 0` or with probability `exp(−scale·ΔMSE/τ)`, `τ = τ₀·(1 − t/T)` (Metropolis; the
+//! paper's τ₀ is 1). argmin's
 //! own `SimulatedAnnealing` re-uses the previous cost, which a stochastic renderer makes
 //! stale; hence this solver.
 //!
@@ -38,6 +39,9 @@ pub struct AnnealingConfig {
     pub accept_scale: f64,
     /// Proposals per iteration.
     pub candidates: usize,
+    /// Initial temperature τ₀ (τ = τ₀·(1 − t/T)); the paper's schedule starts at 1. A small
+    /// τ₀ explores near θ without giving up a good starting code (e.g. an EM fit).
+    pub temperature: f64,
 }
 
 impl Default for AnnealingConfig {
@@ -46,6 +50,7 @@ impl Default for AnnealingConfig {
             noise: 0.2,
             accept_scale: 10.0,
             candidates: 1,
+            temperature: 1.0,
         }
     }
 }
@@ -67,6 +72,12 @@ impl AnnealingConfig {
         }
         if self.candidates == 0 {
             return Err(Error::param("candidates", "must be at least 1"));
+        }
+        if !(self.temperature.is_finite() && self.temperature > 0.0) {
+            return Err(Error::param(
+                "temperature",
+                format!("must be > 0, got {}", self.temperature),
+            ));
         }
         Ok(())
     }
@@ -92,8 +103,9 @@ pub fn metropolis_phase<O: Anneal + Differentiable>(
     seed: u64,
     stream: u64,
 ) -> Result<PhaseStats, ArgminError> {
-    let tau = (1.0 - frac).max(0.0);
-    let std = cfg.noise * tau;
+    let progress = (1.0 - frac).max(0.0);
+    let tau = cfg.temperature * progress;
+    let std = cfg.noise * progress;
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(ifslab::chaos::mix_seed(seed, stream));
     let mut cost = problem.problem("anneal_cost", |p| {
         p.anneal_cost(theta, stream).map_err(to_argmin)

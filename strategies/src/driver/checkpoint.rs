@@ -1,13 +1,35 @@
 //! Checkpoints as JSON (floats written so they read back bit-exactly), written atomically:
 //! a temporary file in the same folder, flushed, then renamed over the last checkpoint.
+//!
+//! JSON has no infinities, and argmin's state starts with `best_cost = +∞` and
+//! `target_cost = −∞`: the five cost fields travel as text beside the state.
 
 use std::path::PathBuf;
 
 use argmin::core::checkpointing::{Checkpoint, CheckpointingFrequency};
 use argmin::core::{Error as ArgminError, TerminationStatus};
-use serde::{Serialize, de::DeserializeOwned};
+use serde::{Deserialize, Serialize, de::DeserializeOwned};
 
 use super::GradState;
+
+/// What a checkpoint file holds.
+#[derive(Serialize, Deserialize)]
+struct Record<S> {
+    solver: S,
+    state: GradState,
+    /// `cost, prev_cost, best_cost, prev_best_cost, target_cost` as text (`inf`, `NaN`, …).
+    costs: [String; 5],
+}
+
+fn costs_mut(state: &mut GradState) -> [&mut f64; 5] {
+    [
+        &mut state.cost,
+        &mut state.prev_cost,
+        &mut state.best_cost,
+        &mut state.prev_best_cost,
+        &mut state.target_cost,
+    ]
+}
 
 /// Saves `(solver, state)` every `every` iterations; loads it back when resuming.
 #[derive(Clone, Debug)]
@@ -38,7 +60,17 @@ impl JsonCheckpoint {
 
 impl<S: Serialize + DeserializeOwned> Checkpoint<S, GradState> for JsonCheckpoint {
     fn save(&self, solver: &S, state: &GradState) -> Result<(), ArgminError> {
-        let bytes = serde_json::to_vec(&(solver, state))?;
+        let mut state = state.clone();
+        let costs = costs_mut(&mut state).map(|c| {
+            let text = format!("{c:?}");
+            *c = 0.0;
+            text
+        });
+        let bytes = serde_json::to_vec(&Record {
+            solver,
+            state,
+            costs,
+        })?;
         ifslab::io::write_atomic(&self.path, &bytes)?;
         Ok(())
     }
@@ -53,12 +85,19 @@ impl<S: Serialize + DeserializeOwned> Checkpoint<S, GradState> for JsonCheckpoin
                 self.path.display()
             ))
         })?;
-        let (solver, mut state): (S, GradState) = serde_json::from_slice(&bytes).map_err(|e| {
+        let corrupt = |what: String| {
             ArgminError::msg(format!(
-                "checkpoint {} is corrupt: {e}",
+                "checkpoint {} is corrupt: {what}",
                 self.path.display()
             ))
-        })?;
+        };
+        let rec: Record<S> = serde_json::from_slice(&bytes).map_err(|e| corrupt(e.to_string()))?;
+        let (solver, mut state) = (rec.solver, rec.state);
+        for (c, text) in costs_mut(&mut state).into_iter().zip(&rec.costs) {
+            *c = text
+                .parse()
+                .map_err(|_| corrupt(format!("cost `{text}` is not a number")))?;
+        }
         // The saved state may have stopped at its own limit: continue to this run's.
         state.max_iters = self.max_iters;
         state.termination_status = TerminationStatus::NotTerminated;

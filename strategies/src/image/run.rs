@@ -90,7 +90,7 @@ pub fn run_inversion(
         let v: serde_json::Value = serde_json::from_slice(&bytes)
             .map_err(|e| Error::file(&ckpt_path, format!("checkpoint is corrupt: {e}")))?;
         Some(
-            v[1]["iter"]
+            v["state"]["iter"]
                 .as_u64()
                 .ok_or_else(|| Error::file(&ckpt_path, "checkpoint has no iteration count"))?,
         )
