@@ -9,9 +9,9 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use ifslab::model::param::Parameterisation;
 use ifslab::model::random::sample_code;
 use ifslab::model::{Affine2, Svd};
-use ifslab::model::param::Parameterisation;
 use ifslab::render::splat::{self, Blend, SplatConfig};
 
 fn setting(name: &str) -> SplatConfig {
@@ -39,7 +39,17 @@ fn maps() -> Vec<Affine2> {
     // A 10-map code inside the SVD parameterisation's normalised square.
     let s = sample_code(10, 3).unwrap();
     let p = Svd::default();
-    let theta = p.encode(&s.maps.iter().map(|m| Affine2 { m: m.m, b: m.b * 0.9 }).collect::<Vec<_>>()).unwrap();
+    let theta = p
+        .encode(
+            &s.maps
+                .iter()
+                .map(|m| Affine2 {
+                    m: m.m,
+                    b: m.b * 0.9,
+                })
+                .collect::<Vec<_>>(),
+        )
+        .unwrap();
     p.decode(&theta).unwrap()
 }
 
@@ -50,7 +60,14 @@ fn bench_splat(c: &mut Criterion) {
         let mut g = c.benchmark_group(format!("splat_{name}"));
         g.sample_size(10);
         g.bench_function("generation", |b| {
-            b.iter(|| black_box(splat::trajectories::run(&cfg.game, &maps, 1).unwrap().states.len()))
+            b.iter(|| {
+                black_box(
+                    splat::trajectories::run(&cfg.game, &maps, 1)
+                        .unwrap()
+                        .states
+                        .len(),
+                )
+            })
         });
         g.bench_function("forward", |b| {
             b.iter(|| black_box(splat::forward::<f32>(&cfg, &maps, 1).unwrap().0.len()))

@@ -44,7 +44,7 @@ pub trait Parameterisation: Send + Sync {
     /// Number of maps θ describes.
     fn n_maps(&self, theta: &[f64]) -> Result<usize> {
         let k = self.params_per_map();
-        if theta.is_empty() || theta.len() % k != 0 {
+        if theta.is_empty() || !theta.len().is_multiple_of(k) {
             return Err(Error::Shape(format!(
                 "θ has {} entries; the {} parameterisation needs a positive multiple of {k}",
                 theta.len(),

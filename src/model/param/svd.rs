@@ -198,12 +198,12 @@ impl Parameterisation for Svd {
             let g_vr = gram_schmidt_backward(&vr, &gv, &g_v);
             out.extend_from_slice(&[g_ur[(0, 0)], g_ur[(0, 1)], g_ur[(1, 0)], g_ur[(1, 1)]]);
             out.extend_from_slice(&[g_vr[(0, 0)], g_vr[(0, 1)], g_vr[(1, 0)], g_vr[(1, 1)]]);
-            for k in 0..2 {
+            for (k, s) in sg.iter().enumerate() {
                 let gs = u.column(k).dot(&(gm * v.column(k)));
-                out.push(gs * SV_CAP * sg[k] * (1.0 - sg[k]));
+                out.push(gs * SV_CAP * s * (1.0 - s));
             }
-            for k in 0..2 {
-                let tb = br[k].tanh();
+            for (k, b) in br.iter().enumerate() {
+                let tb = b.tanh();
                 out.push(g.b[k] * (1.0 - tb * tb));
             }
         }

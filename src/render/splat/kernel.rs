@@ -49,6 +49,8 @@ pub struct SplatState<T> {
     entries: Vec<u32>,
     /// The points of `entries`, copied in the same order so a tile reads them sequentially.
     coords: Vec<[T; 2]>,
+    /// Tiles with at least one entry, in order; `trans` holds one buffer per used tile.
+    used: Vec<usize>,
     trans: Vec<T>,
 }
 
@@ -92,14 +94,33 @@ impl SplatGrid {
 /// Inclusive pixel range `[lo, hi]` whose centres lie within `r` of `x`, clipped to `[0, n)`.
 #[inline(always)]
 fn footprint(x: f64, r: f64, n: usize) -> Option<(usize, usize)> {
-    let lo = (x - r - 0.5).ceil().max(0.0);
-    let hi = (x + r - 0.5).floor().min(n as f64 - 1.0);
+    // Clamp first: far-away points (and non-finite ones, which fail every comparison) must
+    // not reach the integer conversions.
+    if !(x + r > 0.0 && x - r < n as f64) {
+        return None;
+    }
+    let lo = ceil_i64(x - r - 0.5).max(0);
+    let hi = floor_i64(x + r - 0.5).min(n as i64 - 1);
     (lo <= hi).then_some((lo as usize, hi as usize))
+}
+
+/// `⌊x⌋` for |x| < 2⁶³ without a libm call (the baseline x86-64 target has no `roundsd`).
+#[inline(always)]
+fn floor_i64(x: f64) -> i64 {
+    let i = x as i64;
+    i - i64::from((i as f64) > x)
+}
+
+/// `⌈x⌉` for |x| < 2⁶³.
+#[inline(always)]
+fn ceil_i64(x: f64) -> i64 {
+    let i = x as i64;
+    i + i64::from((i as f64) < x)
 }
 
 /// Bins points to tiles by a stable counting sort (point order kept within each tile);
 /// returns the tile offsets, the point indices and the points in binned order.
-fn bin<T: Float + Send + Sync>(uv: &[[T; 2]], g: &Geometry) -> (Vec<usize>, Vec<u32>, Vec<[T; 2]>) {
+fn bin<T: SplatReal>(uv: &[[T; 2]], g: &Geometry) -> (Vec<usize>, Vec<u32>, Vec<[T; 2]>) {
     let ranges: Vec<Option<[u32; 4]>> = uv
         .par_iter()
         .map(|p| {
@@ -148,6 +169,11 @@ fn bin<T: Float + Send + Sync>(uv: &[[T; 2]], g: &Geometry) -> (Vec<usize>, Vec<
     (tile_start, entries, coords)
 }
 
+/// Transmittance below this is set to exactly 0: the pixel is covered, its gradient through
+/// `T` is below 1e-18 of the incoming one, and it keeps the arithmetic out of subnormal
+/// numbers (which cost ~100 cycles per operation on x86 and dominated the splat's run time).
+const TRANSMITTANCE_FLOOR: f64 = 1e-20;
+
 /// Lanes of the inner loops: footprint rows are padded to a multiple of this (with zero
 /// weights, which contribute exactly nothing) so the loops vectorise, and reductions keep
 /// `LANES` partial sums combined in a fixed order.
@@ -192,13 +218,15 @@ fn weights<T: Float>(
 }
 
 /// Constants of the footprint, in the working precision.
+#[doc(hidden)]
 #[derive(Clone, Copy)]
-struct Consts<T> {
+pub struct Consts<T> {
     inv2s2: T,
     q: T,
     eps: T,
     inv1me: T,
     amax: T,
+    tmin: T,
     dscale: T,
     norm: T,
 }
@@ -211,6 +239,7 @@ impl<T: Float> Consts<T> {
             eps: c(g.eps),
             inv1me: c(1.0 / (1.0 - g.eps)),
             amax: c(grid.alpha_max),
+            tmin: c(TRANSMITTANCE_FLOOR),
             // dα/du = g_raw·(x + ½ − u)/(σ²(1 − ε)).
             dscale: c(1.0 / (grid.sigma * grid.sigma * (1.0 - g.eps))),
             norm: c(1.0 / (grid.supersample * grid.supersample) as f64),
@@ -267,7 +296,8 @@ impl Geometry {
 
 /// Splats one tile's points into its buffer (transmittance or density), then pools it.
 #[inline(always)]
-fn tile_forward_impl<T: Float, const COVERAGE: bool>(
+fn tile_forward<T: SplatReal, const COVERAGE: bool>(
+    simd: bool,
     g: &Geometry,
     k: &Consts<T>,
     tg: &TileGeom,
@@ -291,25 +321,8 @@ fn tile_forward_impl<T: Float, const COVERAGE: bool>(
         let npad = weights(p[0], x0, x1, k.inv2s2, k.q, &mut wx, &mut dx);
         weights(p[1], y0, y1, k.inv2s2, k.q, &mut wy, &mut dy);
         let wx = &wx[..npad];
-        for (ry, &wyr) in wy[..=y1 - y0].iter().enumerate() {
-            let base = (y0 + ry - tg.oy) * stride + (x0 - tg.ox);
-            let row = &mut buf[base..base + npad];
-            for (b, &wxc) in row.iter_mut().zip(wx) {
-                let a = (wxc * wyr - k.eps) * k.inv1me;
-                if COVERAGE {
-                    let a = if a < zero {
-                        zero
-                    } else if a > k.amax {
-                        k.amax
-                    } else {
-                        a
-                    };
-                    *b = *b * (one - a);
-                } else {
-                    *b = *b + if a < zero { zero } else { a };
-                }
-            }
-        }
+        let base = (y0 - tg.oy) * stride + (x0 - tg.ox);
+        T::footprint_forward::<COVERAGE>(simd, buf, base, stride, wx, &wy[..=y1 - y0], k);
     }
     let mut out = vec![zero; tg.pw * tg.ph];
     for py in 0..tg.ph {
@@ -330,7 +343,8 @@ fn tile_forward_impl<T: Float, const COVERAGE: bool>(
 /// Per-point `∂L/∂(u, v)` of one tile's points, in list order.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn tile_backward_impl<T: Float, const COVERAGE: bool>(
+fn tile_backward<T: SplatReal, const COVERAGE: bool>(
+    simd: bool,
     g: &Geometry,
     k: &Consts<T>,
     tg: &TileGeom,
@@ -372,7 +386,8 @@ fn tile_backward_impl<T: Float, const COVERAGE: bool>(
         };
         let npad = weights(p[0], x0, x1, k.inv2s2, k.q, &mut wx, &mut dx);
         weights(p[1], y0, y1, k.inv2s2, k.q, &mut wy, &mut dy);
-        let (gu, gv) = footprint_grad::<T, COVERAGE>(
+        let (gu, gv) = T::footprint_backward::<COVERAGE>(
+            simd,
             k,
             &h,
             (y0 - tg.oy) * stride + (x0 - tg.ox),
@@ -390,10 +405,131 @@ fn tile_backward_impl<T: Float, const COVERAGE: bool>(
     out
 }
 
-/// `Σ_p H(p)·∂α/∂(u, v)` over one point's footprint (without the `1/σ²(1 − ε)` factor).
+/// The float types the kernel runs in, with its two inner loops over one point's footprint
+/// (rows padded to a multiple of [`LANES`]). The generic bodies define the arithmetic; `f32`
+/// also has AVX2 versions doing the same operations lane by lane in the same order (no fused
+/// multiply–adds, the same fixed-order lane reduction), so results are bit-identical
+/// whichever runs.
+pub trait SplatReal: Float + Send + Sync + 'static {
+    /// Blends the footprint `wx ⊗ wy` into `buf` starting at `base` (row stride `stride`).
+    #[doc(hidden)]
+    #[inline(always)]
+    fn footprint_forward<const COVERAGE: bool>(
+        _simd: bool,
+        buf: &mut [Self],
+        base: usize,
+        stride: usize,
+        wx: &[Self],
+        wy: &[Self],
+        k: &Consts<Self>,
+    ) {
+        for (ry, &wyr) in wy.iter().enumerate() {
+            let row = base + ry * stride;
+            row_forward_generic::<Self, COVERAGE>(&mut buf[row..row + wx.len()], wx, wyr, k);
+        }
+    }
+
+    /// `Σ_p H(p)·∂α/∂(u, v)` over the footprint, without the `1/σ²(1 − ε)` factor.
+    #[doc(hidden)]
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn footprint_backward<const COVERAGE: bool>(
+        _simd: bool,
+        k: &Consts<Self>,
+        h: &[Self],
+        base: usize,
+        stride: usize,
+        wx: &[Self],
+        dx: &[Self],
+        wy: &[Self],
+        dy: &[Self],
+    ) -> (Self, Self) {
+        footprint_backward_generic::<Self, COVERAGE>(k, h, base, stride, wx, dx, wy, dy)
+    }
+}
+
+impl SplatReal for f64 {}
+
+impl SplatReal for f32 {
+    #[inline(always)]
+    fn footprint_forward<const COVERAGE: bool>(
+        simd: bool,
+        buf: &mut [f32],
+        base: usize,
+        stride: usize,
+        wx: &[f32],
+        wy: &[f32],
+        k: &Consts<f32>,
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if simd {
+            // SAFETY: `simd` is only set when the CPU reports AVX2; bounds are checked inside.
+            return unsafe { avx2::footprint_forward::<COVERAGE>(buf, base, stride, wx, wy, k) };
+        }
+        let _ = simd;
+        for (ry, &wyr) in wy.iter().enumerate() {
+            let row = base + ry * stride;
+            row_forward_generic::<f32, COVERAGE>(&mut buf[row..row + wx.len()], wx, wyr, k);
+        }
+    }
+
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn footprint_backward<const COVERAGE: bool>(
+        simd: bool,
+        k: &Consts<f32>,
+        h: &[f32],
+        base: usize,
+        stride: usize,
+        wx: &[f32],
+        dx: &[f32],
+        wy: &[f32],
+        dy: &[f32],
+    ) -> (f32, f32) {
+        #[cfg(target_arch = "x86_64")]
+        if simd {
+            // SAFETY: as above.
+            return unsafe {
+                avx2::footprint_backward::<COVERAGE>(k, h, base, stride, wx, dx, wy, dy)
+            };
+        }
+        let _ = simd;
+        footprint_backward_generic::<f32, COVERAGE>(k, h, base, stride, wx, dx, wy, dy)
+    }
+}
+
+#[inline(always)]
+fn row_forward_generic<T: Float, const COVERAGE: bool>(
+    row: &mut [T],
+    wx: &[T],
+    wyr: T,
+    k: &Consts<T>,
+) {
+    let (zero, one) = (T::zero(), T::one());
+    for (b, &wxc) in row.iter_mut().zip(wx) {
+        let a = (wxc * wyr - k.eps) * k.inv1me;
+        if COVERAGE {
+            let a = if a < zero {
+                zero
+            } else if a > k.amax {
+                k.amax
+            } else {
+                a
+            };
+            let t = *b * (one - a);
+            *b = if t < k.tmin { zero } else { t };
+        } else {
+            *b = *b + if a < zero { zero } else { a };
+        }
+    }
+}
+
+/// Per lane `l`: `su[l] += w·dx`, `sv[l] += w·dy` over every pixel of the footprint, then
+/// the lanes summed in order; `w = H·g/(1 − α)` where `0 < α < α_max` (coverage) or `H·g`
+/// where `g > ε` (additive).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn footprint_grad<T: Float, const COVERAGE: bool>(
+fn footprint_backward_generic<T: Float, const COVERAGE: bool>(
     k: &Consts<T>,
     h: &[T],
     base: usize,
@@ -403,68 +539,152 @@ fn footprint_grad<T: Float, const COVERAGE: bool>(
     wy: &[T],
     dy: &[T],
 ) -> (T, T) {
-    let zero = T::zero();
-    let one = T::one();
-    let npad = wx.len();
-    let (mut gu, mut gv) = (zero, zero);
+    let (zero, one) = (T::zero(), T::one());
+    let mut su = [zero; LANES];
+    let mut sv = [zero; LANES];
     for (ry, (&wyr, &dyr)) in wy.iter().zip(dy).enumerate() {
         let row = base + ry * stride;
-        let hrow = &h[row..row + npad];
-        let mut su = [zero; LANES];
-        let mut sv = [zero; LANES];
-        for ((hc, wc), dc) in hrow
+        for ((hc, wc), dc) in h[row..row + wx.len()]
             .chunks_exact(LANES)
             .zip(wx.chunks_exact(LANES))
             .zip(dx.chunks_exact(LANES))
         {
-            // Branch-free so the lanes vectorise: compute, then select.
-            let mut w = [zero; LANES];
             for l in 0..LANES {
                 let gr = wc[l] * wyr;
                 let a = (gr - k.eps) * k.inv1me;
                 let valid = if COVERAGE {
-                    (a > zero) & (a < k.amax)
+                    a > zero && a < k.amax
                 } else {
                     a > zero
                 };
-                let v = if COVERAGE {
+                let w = if !valid {
+                    zero
+                } else if COVERAGE {
                     hc[l] * gr / (one - a)
                 } else {
                     hc[l] * gr
                 };
-                w[l] = if valid { v } else { zero };
-            }
-            for l in 0..LANES {
-                su[l] = su[l] + w[l] * dc[l];
-                sv[l] = sv[l] + w[l];
+                su[l] = su[l] + w * dc[l];
+                sv[l] = sv[l] + w * dyr;
             }
         }
-        let (mut ru, mut rv) = (zero, zero);
-        for l in 0..LANES {
-            ru = ru + su[l];
-            rv = rv + sv[l];
-        }
-        gu = gu + ru;
-        gv = gv + rv * dyr;
     }
-    (gu, gv)
+    lane_sums(&su, &sv)
 }
 
-/// Runs `$body` compiled for AVX2 when the CPU has it, else for the baseline target. Both
-/// builds execute the same floating-point operations in the same order (Rust never fuses
-/// multiply–adds on its own), so results are identical either way.
-macro_rules! dispatch {
-    ($name:ident, $generic:ident, ($($arg:ident : $ty:ty),*) -> $ret:ty) => {
-        #[cfg(target_arch = "x86_64")]
-        #[target_feature(enable = "avx2")]
-        fn $name<T: Float, const COVERAGE: bool>($($arg: $ty),*) -> $ret {
-            $generic::<T, COVERAGE>($($arg),*)
+/// `(Σ su, Σ sv)` over the lanes, in lane order.
+#[inline(always)]
+fn lane_sums<T: Float>(su: &[T; LANES], sv: &[T; LANES]) -> (T, T) {
+    let (mut ru, mut rv) = (T::zero(), T::zero());
+    for l in 0..LANES {
+        ru = ru + su[l];
+        rv = rv + sv[l];
+    }
+    (ru, rv)
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    //! The f32 footprint loops with AVX2 intrinsics: eight pixels per instruction, the
+    //! arithmetic of the generic loops operation for operation.
+    use std::arch::x86_64::*;
+
+    use super::{Consts, LANES, lane_sums};
+
+    #[target_feature(enable = "avx2")]
+    pub(super) fn footprint_forward<const COVERAGE: bool>(
+        buf: &mut [f32],
+        base: usize,
+        stride: usize,
+        wx: &[f32],
+        wy: &[f32],
+        k: &Consts<f32>,
+    ) {
+        let n = wx.len() / LANES * LANES;
+        let tmin = _mm256_set1_ps(k.tmin);
+        assert!(wy.is_empty() || base + (wy.len() - 1) * stride + n <= buf.len());
+        let (zero, one) = (_mm256_setzero_ps(), _mm256_set1_ps(1.0));
+        let (eps, inv, amax) = (
+            _mm256_set1_ps(k.eps),
+            _mm256_set1_ps(k.inv1me),
+            _mm256_set1_ps(k.amax),
+        );
+        for (ry, &wyr) in wy.iter().enumerate() {
+            let vy = _mm256_set1_ps(wyr);
+            let row = base + ry * stride;
+            for i in (0..n).step_by(LANES) {
+                // SAFETY: row + i + 8 ≤ buf.len() (asserted above) and i + 8 ≤ wx.len().
+                unsafe {
+                    let w = _mm256_loadu_ps(wx.as_ptr().add(i));
+                    let p = buf.as_mut_ptr().add(row + i);
+                    let b = _mm256_loadu_ps(p);
+                    let a = _mm256_mul_ps(_mm256_sub_ps(_mm256_mul_ps(w, vy), eps), inv);
+                    let out = if COVERAGE {
+                        let a = _mm256_min_ps(_mm256_max_ps(a, zero), amax);
+                        let t = _mm256_mul_ps(b, _mm256_sub_ps(one, a));
+                        _mm256_and_ps(t, _mm256_cmp_ps::<_CMP_GE_OQ>(t, tmin))
+                    } else {
+                        _mm256_add_ps(b, _mm256_max_ps(a, zero))
+                    };
+                    _mm256_storeu_ps(p, out);
+                }
+            }
         }
-    };
-}
+    }
 
-dispatch!(tile_forward_avx2, tile_forward_impl, (g: &Geometry, k: &Consts<T>, tg: &TileGeom, s: usize, coords: &[[T; 2]], buf: &mut [T]) -> Vec<T>);
-dispatch!(tile_backward_avx2, tile_backward_impl, (g: &Geometry, k: &Consts<T>, tg: &TileGeom, s: usize, width: usize, coords: &[[T; 2]], trans: &[T], grad_image: &[T]) -> Vec<[f64; 2]>);
+    #[target_feature(enable = "avx2")]
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn footprint_backward<const COVERAGE: bool>(
+        k: &Consts<f32>,
+        h: &[f32],
+        base: usize,
+        stride: usize,
+        wx: &[f32],
+        dx: &[f32],
+        wy: &[f32],
+        dy: &[f32],
+    ) -> (f32, f32) {
+        let n = wx.len().min(dx.len()) / LANES * LANES;
+        assert!(wy.is_empty() || base + (wy.len() - 1) * stride + n <= h.len());
+        let (zero, one) = (_mm256_setzero_ps(), _mm256_set1_ps(1.0));
+        let (eps, inv, amax) = (
+            _mm256_set1_ps(k.eps),
+            _mm256_set1_ps(k.inv1me),
+            _mm256_set1_ps(k.amax),
+        );
+        let (mut su, mut sv) = (zero, zero);
+        for (ry, (&wyr, &dyr)) in wy.iter().zip(dy).enumerate() {
+            let vy = _mm256_set1_ps(wyr);
+            let vdy = _mm256_set1_ps(dyr);
+            let row = base + ry * stride;
+            for i in (0..n).step_by(LANES) {
+                // SAFETY: row + i + 8 ≤ h.len() (asserted above), i + 8 ≤ wx.len(), dx.len().
+                unsafe {
+                    let gr = _mm256_mul_ps(_mm256_loadu_ps(wx.as_ptr().add(i)), vy);
+                    let a = _mm256_mul_ps(_mm256_sub_ps(gr, eps), inv);
+                    let hv = _mm256_loadu_ps(h.as_ptr().add(row + i));
+                    let mut valid = _mm256_cmp_ps::<_CMP_GT_OQ>(a, zero);
+                    let v = if COVERAGE {
+                        valid = _mm256_and_ps(valid, _mm256_cmp_ps::<_CMP_LT_OQ>(a, amax));
+                        _mm256_div_ps(_mm256_mul_ps(hv, gr), _mm256_sub_ps(one, a))
+                    } else {
+                        _mm256_mul_ps(hv, gr)
+                    };
+                    let w = _mm256_and_ps(v, valid);
+                    su = _mm256_add_ps(su, _mm256_mul_ps(w, _mm256_loadu_ps(dx.as_ptr().add(i))));
+                    sv = _mm256_add_ps(sv, _mm256_mul_ps(w, vdy));
+                }
+            }
+        }
+        let (mut a, mut b) = ([0.0f32; LANES], [0.0f32; LANES]);
+        // SAFETY: both arrays hold 8 floats.
+        unsafe {
+            _mm256_storeu_ps(a.as_mut_ptr(), su);
+            _mm256_storeu_ps(b.as_mut_ptr(), sv);
+        }
+        lane_sums(&a, &b)
+    }
+}
 
 fn has_avx2() -> bool {
     #[cfg(target_arch = "x86_64")]
@@ -477,53 +697,8 @@ fn has_avx2() -> bool {
     }
 }
 
-#[allow(clippy::too_many_arguments)]
-fn tile_forward<T: Float, const COVERAGE: bool>(
-    avx2: bool,
-    g: &Geometry,
-    k: &Consts<T>,
-    tg: &TileGeom,
-    s: usize,
-    coords: &[[T; 2]],
-    buf: &mut [T],
-) -> Vec<T> {
-    #[cfg(target_arch = "x86_64")]
-    if avx2 {
-        // SAFETY: only reached when the CPU reports AVX2.
-        return unsafe { tile_forward_avx2::<T, COVERAGE>(g, k, tg, s, coords, buf) };
-    }
-    let _ = avx2;
-    tile_forward_impl::<T, COVERAGE>(g, k, tg, s, coords, buf)
-}
-
-#[allow(clippy::too_many_arguments)]
-fn tile_backward<T: Float, const COVERAGE: bool>(
-    avx2: bool,
-    g: &Geometry,
-    k: &Consts<T>,
-    tg: &TileGeom,
-    s: usize,
-    width: usize,
-    coords: &[[T; 2]],
-    trans: &[T],
-    grad_image: &[T],
-) -> Vec<[f64; 2]> {
-    #[cfg(target_arch = "x86_64")]
-    if avx2 {
-        // SAFETY: only reached when the CPU reports AVX2.
-        return unsafe {
-            tile_backward_avx2::<T, COVERAGE>(g, k, tg, s, width, coords, trans, grad_image)
-        };
-    }
-    let _ = avx2;
-    tile_backward_impl::<T, COVERAGE>(g, k, tg, s, width, coords, trans, grad_image)
-}
-
 /// Forward: pooled image (row-major `height × width`) and the state for the reverse pass.
-pub fn forward<T: Float + Send + Sync>(
-    grid: &SplatGrid,
-    uv: Vec<[T; 2]>,
-) -> (Vec<T>, SplatState<T>) {
+pub fn forward<T: SplatReal>(grid: &SplatGrid, uv: Vec<[T; 2]>) -> (Vec<T>, SplatState<T>) {
     let g = grid.geometry();
     let (tile_start, entries, coords) = bin(&uv, &g);
     let s = grid.supersample;
@@ -531,25 +706,29 @@ pub fn forward<T: Float + Send + Sync>(
     let coverage = grid.blend == Blend::Coverage;
     let k = Consts::<T>::new(grid, &g);
     let n_tiles = g.tiles_x * g.tiles_y;
-    let avx2 = has_avx2();
-    // Each tile's supersampled buffer: transmittance (coverage, kept for the reverse pass)
-    // or density (additive, dropped after pooling).
-    let mut bufs = vec![if coverage { T::one() } else { T::zero() }; n_tiles * tl];
+    let simd = has_avx2();
+    // Only tiles some footprint touches get a buffer (the others render 0 and have no
+    // gradient): the transmittance (coverage, kept for the reverse pass) or the density
+    // (additive, dropped after pooling).
+    let used: Vec<usize> = (0..n_tiles)
+        .filter(|&t| tile_start[t + 1] > tile_start[t])
+        .collect();
+    let mut bufs = vec![if coverage { T::one() } else { T::zero() }; used.len() * tl];
     let pooled: Vec<Vec<T>> = bufs
         .par_chunks_mut(tl)
-        .enumerate()
-        .map(|(t, buf)| {
+        .zip(used.par_iter())
+        .map(|(buf, &t)| {
             let tg = g.tile(t, grid);
             let pts = &coords[tile_start[t]..tile_start[t + 1]];
             if coverage {
-                tile_forward::<T, true>(avx2, &g, &k, &tg, s, pts, buf)
+                tile_forward::<T, true>(simd, &g, &k, &tg, s, pts, buf)
             } else {
-                tile_forward::<T, false>(avx2, &g, &k, &tg, s, pts, buf)
+                tile_forward::<T, false>(simd, &g, &k, &tg, s, pts, buf)
             }
         })
         .collect();
     let mut image = vec![T::zero(); grid.width * grid.height];
-    for (t, out) in pooled.iter().enumerate() {
+    for (&t, out) in used.iter().zip(&pooled) {
         let tg = g.tile(t, grid);
         for (py, row) in out.chunks_exact(tg.pw).enumerate() {
             let start = (tg.oy / s + py) * grid.width + tg.ox / s;
@@ -566,13 +745,14 @@ pub fn forward<T: Float + Send + Sync>(
             tile_start,
             entries,
             coords,
+            used,
             trans: bufs,
         },
     )
 }
 
 /// Reverse: `∂L/∂(u, v)` of every point from `∂L/∂image`.
-pub fn backward<T: Float + Send + Sync>(
+pub fn backward<T: SplatReal>(
     grid: &SplatGrid,
     state: &SplatState<T>,
     grad_image: &[T],
@@ -582,31 +762,113 @@ pub fn backward<T: Float + Send + Sync>(
     let tl = g.tile_len();
     let coverage = grid.blend == Blend::Coverage;
     let k = Consts::<T>::new(grid, &g);
-    let n_tiles = g.tiles_x * g.tiles_y;
-    let avx2 = has_avx2();
+    let simd = has_avx2();
     let (entries, coords, tile_start) = (&state.entries, &state.coords, &state.tile_start);
-    let partials: Vec<Vec<[f64; 2]>> = (0..n_tiles)
-        .into_par_iter()
-        .map(|t| {
+    let partials: Vec<Vec<[f64; 2]>> = state
+        .used
+        .par_iter()
+        .enumerate()
+        .map(|(slot, &t)| {
             let pts = &coords[tile_start[t]..tile_start[t + 1]];
-            if pts.is_empty() {
-                return Vec::new();
-            }
             let tg = g.tile(t, grid);
             if coverage {
-                let trans = &state.trans[t * tl..(t + 1) * tl];
-                tile_backward::<T, true>(avx2, &g, &k, &tg, s, grid.width, pts, trans, grad_image)
+                let trans = &state.trans[slot * tl..(slot + 1) * tl];
+                tile_backward::<T, true>(simd, &g, &k, &tg, s, grid.width, pts, trans, grad_image)
             } else {
-                tile_backward::<T, false>(avx2, &g, &k, &tg, s, grid.width, pts, &[], grad_image)
+                tile_backward::<T, false>(simd, &g, &k, &tg, s, grid.width, pts, &[], grad_image)
             }
         })
         .collect();
     let mut guv = vec![[0.0f64; 2]; state.uv.len()];
-    for (t, part) in partials.iter().enumerate() {
+    for (&t, part) in state.used.iter().zip(&partials) {
         for (&j, g) in entries[tile_start[t]..tile_start[t + 1]].iter().zip(part) {
             guv[j as usize][0] += g[0];
             guv[j as usize][1] += g[1];
         }
     }
     guv
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn integer_floor_and_ceil_match_libm() {
+        for x in [-3.5, -3.0, -0.2, 0.0, 0.2, 1.0, 2.999, 7.5, 1e9 + 0.5] {
+            assert_eq!(floor_i64(x), x.floor() as i64, "floor {x}");
+            assert_eq!(ceil_i64(x), x.ceil() as i64, "ceil {x}");
+        }
+    }
+
+    #[test]
+    fn footprints_are_clipped_and_refuse_far_or_nan_points() {
+        assert_eq!(footprint(5.2, 1.5, 10), Some((4, 6)));
+        assert_eq!(footprint(0.1, 1.5, 10), Some((0, 1)));
+        assert_eq!(footprint(-5.0, 1.5, 10), None);
+        assert_eq!(footprint(1e30, 1.5, 10), None);
+        assert_eq!(footprint(f64::NAN, 1.5, 10), None);
+    }
+
+    /// The AVX2 inner loops compute exactly what the generic ones do.
+    #[test]
+    fn simd_and_generic_rows_agree_bit_for_bit() {
+        if !has_avx2() {
+            return;
+        }
+        let grid = SplatGrid {
+            width: 8,
+            height: 8,
+            supersample: 2,
+            sigma: 1.3,
+            radius: 3.0,
+            alpha_max: 0.99,
+            blend: Blend::Coverage,
+        };
+        let g = grid.geometry();
+        let k = Consts::<f32>::new(&grid, &g);
+        let n = 16;
+        let wx: Vec<f32> = (0..n)
+            .map(|i| {
+                if i < 13 {
+                    (-(i as f32 - 6.3).powi(2) / 3.4).exp()
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let dx: Vec<f32> = (0..n).map(|i| i as f32 - 6.3).collect();
+        let wy = [0.2f32, 0.7, 1.0, 0.5, 0.05];
+        let dy = [-2.1f32, -1.1, -0.1, 0.9, 1.9];
+        let stride = 24;
+        let h: Vec<f32> = (0..stride * 6)
+            .map(|i| ((i * 37 % 101) as f32 / 50.0 - 1.0) * 0.3)
+            .collect();
+        for coverage in [true, false] {
+            let mut a: Vec<f32> = (0..stride * 6)
+                .map(|i| 0.2 + (i % 7) as f32 / 10.0)
+                .collect();
+            let mut b = a.clone();
+            if coverage {
+                f32::footprint_forward::<true>(true, &mut a, 3, stride, &wx, &wy, &k);
+                f32::footprint_forward::<true>(false, &mut b, 3, stride, &wx, &wy, &k);
+            } else {
+                f32::footprint_forward::<false>(true, &mut a, 3, stride, &wx, &wy, &k);
+                f32::footprint_forward::<false>(false, &mut b, 3, stride, &wx, &wy, &k);
+            }
+            assert_eq!(a, b, "forward, coverage = {coverage}");
+            let (r1, r2) = if coverage {
+                (
+                    f32::footprint_backward::<true>(true, &k, &h, 3, stride, &wx, &dx, &wy, &dy),
+                    f32::footprint_backward::<true>(false, &k, &h, 3, stride, &wx, &dx, &wy, &dy),
+                )
+            } else {
+                (
+                    f32::footprint_backward::<false>(true, &k, &h, 3, stride, &wx, &dx, &wy, &dy),
+                    f32::footprint_backward::<false>(false, &k, &h, 3, stride, &wx, &dx, &wy, &dy),
+                )
+            };
+            assert_eq!(r1, r2, "backward, coverage = {coverage}");
+        }
+    }
 }

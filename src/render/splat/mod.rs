@@ -36,12 +36,11 @@ pub mod frame;
 pub mod kernel;
 pub mod trajectories;
 
-use num_traits::Float;
 use serde::{Deserialize, Serialize};
 
 pub use candle_op::{SplatOp, maps_from_tensor, maps_to_tensor};
 pub use frame::{FrameState, SplatFraming};
-pub use kernel::{Blend, SplatGrid};
+pub use kernel::{Blend, SplatGrid, SplatReal};
 pub use trajectories::TrajectoryTape;
 
 use crate::chaos::ChaosGame;
@@ -154,7 +153,7 @@ pub struct SplatTape<T> {
 }
 
 /// Forward pass: the image (row-major `height × width`, values ≥ 0) and its tape.
-pub fn forward<T: Float + Send + Sync>(
+pub fn forward<T: SplatReal>(
     cfg: &SplatConfig,
     maps: &[Affine2],
     seed: u64,
@@ -196,7 +195,7 @@ pub fn forward<T: Float + Send + Sync>(
 
 /// Reverse pass: `∂L/∂maps` (each [`Affine2`] holding `∂L/∂M` and `∂L/∂b`) from
 /// `∂L/∂image` (row-major, same shape as the forward image).
-pub fn backward<T: Float + Send + Sync>(
+pub fn backward<T: SplatReal>(
     cfg: &SplatConfig,
     maps: &[Affine2],
     tape: &SplatTape<T>,

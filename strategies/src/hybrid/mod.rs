@@ -96,7 +96,7 @@ impl Hybrid {
     /// Whether iteration `t` starts with an annealing phase.
     pub fn anneals_at(&self, t: u64) -> bool {
         t > 0
-            && t % self.config.anneal_every == 0
+            && t.is_multiple_of(self.config.anneal_every)
             && (t as f64) < self.config.anneal_fraction * self.max_iters as f64
     }
 }

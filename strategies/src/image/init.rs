@@ -40,7 +40,7 @@ pub fn sample_image_points(image: &[f32], size: usize, n: usize, seed: u64) -> R
         acc += v.max(0.0) as f64;
         cdf.push(acc);
     }
-    if !(acc > 0.0) {
+    if acc <= 0.0 || acc.is_nan() {
         return Err(Error::InvalidInput(
             "the target has no bright pixels to sample points from".into(),
         ));
