@@ -5,7 +5,9 @@
 use candle_core::{DType, Device, Var};
 use ifslab::chaos::ChaosGame;
 use ifslab::model::{Affine2, Framing};
-use ifslab::render::splat::{self, Blend, SplatConfig, SplatFraming, SplatOp, maps_from_tensor, maps_to_tensor};
+use ifslab::render::splat::{
+    self, Blend, SplatConfig, SplatFraming, SplatOp, maps_from_tensor, maps_to_tensor,
+};
 
 fn maps() -> Vec<Affine2> {
     vec![
@@ -37,7 +39,9 @@ fn config(blend: Blend, supersample: usize, framing: SplatFraming) -> SplatConfi
 
 /// Fixed pseudo-random weights W so that L = Σ W ⊙ image and ∂L/∂image = W.
 fn weights(n: usize) -> Vec<f64> {
-    (0..n).map(|i| ((i as f64 * 12.9898).sin() * 43758.5453).fract() - 0.25).collect()
+    (0..n)
+        .map(|i| ((i as f64 * 12.9898).sin() * 43758.5453).fract() - 0.25)
+        .collect()
 }
 
 fn loss(cfg: &SplatConfig, maps: &[Affine2], w: &[f64]) -> f64 {
@@ -49,7 +53,10 @@ fn check_gradient(cfg: &SplatConfig) {
     let maps = maps();
     let w = weights(cfg.width * cfg.height);
     let (img, tape) = splat::forward::<f64>(cfg, &maps, 7).unwrap();
-    assert!(img.iter().any(|&v| v > 0.05), "the render must not be empty");
+    assert!(
+        img.iter().any(|&v| v > 0.05),
+        "the render must not be empty"
+    );
     let grad = splat::backward(cfg, &maps, &tape, &w).unwrap();
     let mut worst = 0.0f64;
     let mut scale = 0.0f64;
@@ -77,8 +84,14 @@ fn check_gradient(cfg: &SplatConfig) {
             );
         }
     }
-    assert!(scale > 1e-3, "gradients should not all vanish (max |fd| = {scale})");
-    eprintln!("{:?} s={}: max |analytic − fd| = {worst:.2e} (max |fd| = {scale:.2e})", cfg.blend, cfg.supersample);
+    assert!(
+        scale > 1e-3,
+        "gradients should not all vanish (max |fd| = {scale})"
+    );
+    eprintln!(
+        "{:?} s={}: max |analytic − fd| = {worst:.2e} (max |fd| = {scale:.2e})",
+        cfg.blend, cfg.supersample
+    );
 }
 
 #[test]
@@ -116,7 +129,10 @@ fn candle_op_gives_the_same_image_and_gradient() {
 
     let dev = Device::Cpu;
     let var = Var::from_tensor(&maps_to_tensor(&maps, DType::F64, &dev).unwrap()).unwrap();
-    let image = var.as_tensor().apply_op1(SplatOp::new(cfg.clone(), 7)).unwrap();
+    let image = var
+        .as_tensor()
+        .apply_op1(SplatOp::new(cfg.clone(), 7))
+        .unwrap();
     assert_eq!(image.dims(), &[20, 24]);
     let got: Vec<f64> = image.flatten_all().unwrap().to_vec1().unwrap();
     assert_eq!(got, img);
@@ -147,11 +163,15 @@ fn forward_and_backward_do_not_depend_on_thread_count() {
     let maps = maps();
     let w: Vec<f32> = weights(70 * 50).iter().map(|&x| x as f32).collect();
     let run = |threads: usize| {
-        rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| {
-            let (img, tape) = splat::forward::<f32>(&cfg, &maps, 3).unwrap();
-            let g = splat::backward(&cfg, &maps, &tape, &w).unwrap();
-            (img, g)
-        })
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| {
+                let (img, tape) = splat::forward::<f32>(&cfg, &maps, 3).unwrap();
+                let g = splat::backward(&cfg, &maps, &tape, &w).unwrap();
+                (img, g)
+            })
     };
     let (a, ga) = run(1);
     let (b, gb) = run(2);
@@ -166,11 +186,22 @@ fn bad_inputs_are_refused() {
     m[1].m[(0, 0)] = f64::NAN;
     assert!(splat::forward::<f32>(&cfg, &m, 0).is_err());
     assert!(splat::forward::<f32>(&cfg, &[], 0).is_err());
-    let bad = SplatConfig { sigma: -1.0, ..cfg.clone() };
-    let e = splat::forward::<f32>(&bad, &maps(), 0).unwrap_err().to_string();
+    let bad = SplatConfig {
+        sigma: -1.0,
+        ..cfg.clone()
+    };
+    let e = splat::forward::<f32>(&bad, &maps(), 0)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("sigma"), "{e}");
     let diverging = vec![Affine2::new(2.5, 0.0, 0.0, 2.5, 1.0, 0.0); 2];
-    let long = SplatConfig { game: ChaosGame { length: 400, ..cfg.game.clone() }, ..cfg };
+    let long = SplatConfig {
+        game: ChaosGame {
+            length: 400,
+            ..cfg.game.clone()
+        },
+        ..cfg
+    };
     assert!(matches!(
         splat::forward::<f32>(&long, &diverging, 0),
         Err(ifslab::Error::Divergent { .. })
