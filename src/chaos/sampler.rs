@@ -68,11 +68,10 @@ impl MapSampler {
         if self.uniform {
             return col;
         }
-        if ((r >> 32) as u32) < self.threshold[col] {
-            col
-        } else {
-            self.alias[col] as usize
-        }
+        // Branch-free: the comparison is a coin flip the predictor cannot learn.
+        let keep = usize::from(((r >> 32) as u32) < self.threshold[col]);
+        let alias = self.alias[col] as usize;
+        keep * col + (1 - keep) * alias
     }
 }
 

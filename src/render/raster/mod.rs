@@ -191,27 +191,32 @@ pub struct Raster {
 pub(crate) struct PixelMap {
     x0: f64,
     y1: f64,
-    /// Output pixels per world unit.
+    /// Supersampled pixels per world unit.
     kx: f64,
     ky: f64,
+    /// Grid size in supersampled pixels.
     w: f64,
     h: f64,
     width: u64,
-    s: u32,
+    s: u64,
+    /// `log2 s` when `s` is a power of two (shifts instead of divisions).
+    shift: Option<u32>,
 }
 
 impl PixelMap {
     fn new(win: &Framing, width: u32, height: u32, s: u32) -> Self {
         let size = win.size();
+        let sf = s as f64;
         PixelMap {
             x0: win.min[0],
             y1: win.max[1],
-            kx: width as f64 / size[0],
-            ky: height as f64 / size[1],
-            w: width as f64,
-            h: height as f64,
+            kx: width as f64 * sf / size[0],
+            ky: height as f64 * sf / size[1],
+            w: width as f64 * sf,
+            h: height as f64 * sf,
             width: width as u64,
-            s,
+            s: s as u64,
+            shift: s.is_power_of_two().then(|| s.trailing_zeros()),
         }
     }
 
@@ -222,12 +227,16 @@ impl PixelMap {
         let fx = (p[0] - self.x0) * self.kx;
         let fy = (self.y1 - p[1]) * self.ky;
         if fx >= 0.0 && fx < self.w && fy >= 0.0 && fy < self.h {
-            let px = fx as u64;
-            let py = fy as u64;
-            let s = self.s as f64;
-            let sx = (((fx - px as f64) * s) as u32).min(self.s - 1);
-            let sy = (((fy - py as f64) * s) as u32).min(self.s - 1);
-            Some((py * self.width + px, sx, sy))
+            // Supersampled pixel, then output pixel and sub-pixel.
+            let (x, y) = (fx as u64, fy as u64);
+            let (px, py, sx, sy) = match self.shift {
+                Some(k) => {
+                    let m = (1u64 << k) - 1;
+                    (x >> k, y >> k, x & m, y & m)
+                }
+                None => (x / self.s, y / self.s, x % self.s, y % self.s),
+            };
+            Some((py * self.width + px, sx as u32, sy as u32))
         } else {
             None
         }
@@ -333,11 +342,13 @@ fn run_rounds<M: Map2, A: Accumulator, F: Fn() -> A + Sync>(
             .map(|g| {
                 let mut a = make();
                 let mut h = 0u64;
-                for i in (g * t / groups)..((g + 1) * t / groups) {
-                    let n = points_of(cfg.points, t, i);
-                    h += run_trajectory(maps, sampler, cfg, first + i as u64, n, &pm, &mut a)?;
+                let (lo, hi) = (g * t / groups, (g + 1) * t / groups);
+                for i in (lo..hi).step_by(LANES) {
+                    let lanes = LANES.min(hi - i);
+                    let ns: Vec<u64> = (i..i + lanes).map(|j| points_of(cfg.points, t, j)).collect();
+                    h += run_trajectories(maps, sampler, cfg, first + i as u64, &ns, &pm, &mut a)?;
                     if let Some(pb) = progress {
-                        pb.inc(n);
+                        pb.inc(ns.iter().sum());
                     }
                 }
                 Ok((a, h))
@@ -378,41 +389,64 @@ fn points_of(total: u64, t: usize, i: usize) -> u64 {
     base + u64::from((i as u64) < total % t as u64)
 }
 
-/// Runs one trajectory into the accumulator; returns the in-window count.
+/// Trajectories stepped together: their chains are independent, so interleaving them hides
+/// the latency of each chain's multiply–adds.
+const LANES: usize = 4;
+
+/// Runs trajectories `first, first + 1, …` (one per entry of `ns`, at most [`LANES`]) into
+/// the accumulator, `ns[l]` kept points each; returns the in-window count.
 #[inline(never)]
-fn run_trajectory<M: Map2, A: Accumulator>(
+fn run_trajectories<M: Map2, A: Accumulator>(
     maps: &[M],
     sampler: &MapSampler,
     cfg: &RenderConfig,
-    index: u64,
-    n: u64,
+    first: u64,
+    ns: &[u64],
     pm: &PixelMap,
     acc: &mut A,
 ) -> Result<u64> {
-    let mut tr = Trajectory::new(maps, sampler, cfg.seed, index, 1.0);
-    tr.skip_steps(cfg.warmup);
+    let mut trs: Vec<Trajectory<'_, M>> = (0..ns.len() as u64)
+        .map(|l| Trajectory::new(maps, sampler, cfg.seed, first + l, 1.0))
+        .collect();
+    for tr in trs.iter_mut() {
+        tr.skip_steps(cfg.warmup);
+    }
     let mut hits = 0u64;
-    for _ in 0..n {
-        let p = tr.step();
-        if let Some((pix, sx, sy)) = pm.locate(p) {
-            acc.add(pix, sx, sy);
-            hits += 1;
+    let common = ns.iter().copied().min().unwrap_or(0);
+    if let [t0, t1, t2, t3] = trs.as_mut_slice() {
+        for _ in 0..common {
+            let ps = [t0.step(), t1.step(), t2.step(), t3.step()];
+            for p in ps {
+                if let Some((pix, sx, sy)) = pm.locate(p) {
+                    acc.add(pix, sx, sy);
+                    hits += 1;
+                }
+            }
         }
     }
-    if !is_bounded(&tr.point()) {
-        // Escaping is absorbing for diverging codes: replay to find the first bad step.
-        let mut replay = Trajectory::new(maps, sampler, cfg.seed, index, 1.0);
-        let mut step = 0usize;
-        loop {
-            if !is_bounded(&replay.step()) {
-                break;
+    let done = if trs.len() == LANES { common } else { 0 };
+    for (tr, &n) in trs.iter_mut().zip(ns) {
+        for _ in done..n {
+            if let Some((pix, sx, sy)) = pm.locate(tr.step()) {
+                acc.add(pix, sx, sy);
+                hits += 1;
             }
-            step += 1;
         }
-        return Err(Error::Divergent {
-            trajectory: index as usize,
-            step,
-        });
+    }
+    for (l, tr) in trs.iter().enumerate() {
+        if !is_bounded(&tr.point()) {
+            // Escaping is absorbing for diverging codes: replay to find the first bad step.
+            let index = first + l as u64;
+            let mut replay = Trajectory::new(maps, sampler, cfg.seed, index, 1.0);
+            let mut step = 0usize;
+            while is_bounded(&replay.step()) {
+                step += 1;
+            }
+            return Err(Error::Divergent {
+                trajectory: index as usize,
+                step,
+            });
+        }
     }
     Ok(hits)
 }
