@@ -46,7 +46,15 @@ fn maps() -> Vec<Affine2> {
     let s = sample_code(10, 3).unwrap();
     let p = Svd::default();
     let theta = p
-        .encode(&s.maps.iter().map(|m| Affine2 { m: m.m, b: m.b * 0.9 }).collect::<Vec<_>>())
+        .encode(
+            &s.maps
+                .iter()
+                .map(|m| Affine2 {
+                    m: m.m,
+                    b: m.b * 0.9,
+                })
+                .collect::<Vec<_>>(),
+        )
         .unwrap();
     p.decode(&theta).unwrap()
 }
@@ -70,7 +78,14 @@ fn bench_splat(c: &mut Criterion) {
         let mut g = c.benchmark_group(format!("iteration_{name}"));
         g.sample_size(10);
         g.bench_function("generation", |b| {
-            b.iter(|| black_box(splat::trajectories::run(&cfg.game, &maps, 1).unwrap().states.len()))
+            b.iter(|| {
+                black_box(
+                    splat::trajectories::run(&cfg.game, &maps, 1)
+                        .unwrap()
+                        .states
+                        .len(),
+                )
+            })
         });
         g.bench_function("splat_forward", |b| {
             b.iter(|| black_box(splat::forward::<f32>(&cfg, &maps, 1).unwrap().0.len()))
@@ -100,10 +115,15 @@ fn bench_splat(c: &mut Criterion) {
             b.iter(|| {
                 let m = p.decode(&theta).unwrap();
                 let var = Var::from_tensor(&maps_to_tensor(&m, DType::F32, &dev).unwrap()).unwrap();
-                let pred = var.as_tensor().apply_op1(SplatOp::new(cfg.clone(), 3)).unwrap();
+                let pred = var
+                    .as_tensor()
+                    .apply_op1(SplatOp::new(cfg.clone(), 3))
+                    .unwrap();
                 let ev = objective.evaluate(&pred, &m).unwrap();
                 let grads = ev.image_total.backward().unwrap();
-                let gm = ifslab::render::splat::maps_from_tensor(grads.get(var.as_tensor()).unwrap()).unwrap();
+                let gm =
+                    ifslab::render::splat::maps_from_tensor(grads.get(var.as_tensor()).unwrap())
+                        .unwrap();
                 black_box(p.backward(&theta, &gm).unwrap().len())
             })
         });

@@ -345,7 +345,9 @@ fn run_rounds<M: Map2, A: Accumulator, F: Fn() -> A + Sync>(
                 let (lo, hi) = (g * t / groups, (g + 1) * t / groups);
                 for i in (lo..hi).step_by(LANES) {
                     let lanes = LANES.min(hi - i);
-                    let ns: Vec<u64> = (i..i + lanes).map(|j| points_of(cfg.points, t, j)).collect();
+                    let ns: Vec<u64> = (i..i + lanes)
+                        .map(|j| points_of(cfg.points, t, j))
+                        .collect();
                     h += run_trajectories(maps, sampler, cfg, first + i as u64, &ns, &pm, &mut a)?;
                     if let Some(pb) = progress {
                         pb.inc(ns.iter().sum());
