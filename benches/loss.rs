@@ -5,6 +5,10 @@
 //!
 //! Run with `cargo bench --bench loss`; sized for a 2-core machine.
 
+/// The allocator the `ifslab` binary ships with, so the figures are what users get.
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 use std::hint::black_box;
 use std::time::Duration;
 

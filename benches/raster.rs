@@ -8,6 +8,10 @@
 //!   draw them into a byte-per-sub-pixel 16384² buffer and box-downsample — at 1/10 of the
 //!   points (its buffer alone is 256 MiB), reported per point for comparison.
 
+/// The allocator the `ifslab` binary ships with, so the figures are what users get.
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 use std::hint::black_box;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};

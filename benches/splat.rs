@@ -7,129 +7,18 @@
 //! Settings (2000 × 250 trajectories, 10 dropped: 480k points):
 //! - `paper`: 1024² output, 5× supersampling, σ = 2.5 supersampled pixels, coverage;
 //! - `cheap`: 256², 1×, σ = 1, additive.
+//! - `demo`: 96², 4×, σ = 1, coverage, 1000 × 110 trajectories (what `ifslab demo` runs).
 //!
 //! LPIPS at 224² is timed in `benches/loss.rs`.
 
-use std::hint::black_box;
+/// The allocator the `ifslab` binary ships with, so the figures are what users get.
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
-use candle_core::{DType, Device, Tensor, Var};
-use criterion::{Criterion, criterion_group, criterion_main};
-use ifslab::loss::{ImageLoss, LossConfig, MsMse, Objective};
-use ifslab::model::param::Parameterisation;
-use ifslab::model::random::sample_code;
-use ifslab::model::{Affine2, Svd};
-use ifslab::render::splat::{self, Blend, SplatConfig, SplatOp, maps_to_tensor};
+/// Criterion group names: `iteration_paper`, `iteration_cheap`, `iteration_demo`.
+const GROUP_SUFFIX: &str = "";
 
-fn setting(name: &str) -> SplatConfig {
-    match name {
-        "paper" => SplatConfig {
-            width: 1024,
-            height: 1024,
-            supersample: 5,
-            sigma: 2.5,
-            blend: Blend::Coverage,
-            ..SplatConfig::default()
-        },
-        _ => SplatConfig {
-            width: 256,
-            height: 256,
-            supersample: 1,
-            sigma: 1.0,
-            blend: Blend::Additive,
-            ..SplatConfig::default()
-        },
-    }
-}
-
-fn maps() -> Vec<Affine2> {
-    // A 10-map code inside the SVD parameterisation's normalised square.
-    let s = sample_code(10, 3).unwrap();
-    let p = Svd::default();
-    let theta = p
-        .encode(
-            &s.maps
-                .iter()
-                .map(|m| Affine2 {
-                    m: m.m,
-                    b: m.b * 0.9,
-                })
-                .collect::<Vec<_>>(),
-        )
-        .unwrap();
-    p.decode(&theta).unwrap()
-}
-
-fn bench_splat(c: &mut Criterion) {
-    let maps = maps();
-    let dev = Device::Cpu;
-    for name in ["paper", "cheap"] {
-        let cfg = setting(name);
-        let (w, h) = (cfg.width, cfg.height);
-        // The target: the same code rendered with other trajectories.
-        let (target, _) = splat::forward::<f32>(&cfg, &maps, 99).unwrap();
-        let target_t = Tensor::from_vec(target.clone(), (h, w), &dev).unwrap();
-        let loss_cfg = LossConfig {
-            lpips_weight: 0.0,
-            ..LossConfig::default()
-        };
-        let objective = Objective::new(loss_cfg.clone(), &target_t).unwrap();
-        let msmse = MsMse::new(loss_cfg.msmse_levels);
-
-        let mut g = c.benchmark_group(format!("iteration_{name}"));
-        g.sample_size(10);
-        g.bench_function("generation", |b| {
-            b.iter(|| {
-                black_box(
-                    splat::trajectories::run(&cfg.game, &maps, 1)
-                        .unwrap()
-                        .states
-                        .len(),
-                )
-            })
-        });
-        g.bench_function("splat_forward", |b| {
-            b.iter(|| black_box(splat::forward::<f32>(&cfg, &maps, 1).unwrap().0.len()))
-        });
-        let (img, tape) = splat::forward::<f32>(&cfg, &maps, 1).unwrap();
-        let pred = Var::from_tensor(&Tensor::from_vec(img.clone(), (h, w), &dev).unwrap()).unwrap();
-        g.bench_function("loss", |b| {
-            b.iter(|| {
-                let ev = objective.evaluate(pred.as_tensor(), &maps).unwrap();
-                let grads = ev.image_total.backward().unwrap();
-                black_box(grads.get(pred.as_tensor()).is_some())
-            })
-        });
-        let grad: Vec<f32> = img.iter().zip(&target).map(|(a, t)| a - t).collect();
-        g.bench_function("splat_backward", |b| {
-            b.iter(|| black_box(splat::backward(&cfg, &maps, &tape, &grad).unwrap().len()))
-        });
-        g.bench_function("anneal_candidate", |b| {
-            b.iter(|| {
-                let (p, _) = splat::forward::<f32>(&cfg, &maps, 2).unwrap();
-                black_box(msmse.value(&p, &target, w, h).unwrap())
-            })
-        });
-        let p = Svd::default();
-        let theta = p.encode(&maps).unwrap();
-        g.bench_function("full_iteration", |b| {
-            b.iter(|| {
-                let m = p.decode(&theta).unwrap();
-                let var = Var::from_tensor(&maps_to_tensor(&m, DType::F32, &dev).unwrap()).unwrap();
-                let pred = var
-                    .as_tensor()
-                    .apply_op1(SplatOp::new(cfg.clone(), 3))
-                    .unwrap();
-                let ev = objective.evaluate(&pred, &m).unwrap();
-                let grads = ev.image_total.backward().unwrap();
-                let gm =
-                    ifslab::render::splat::maps_from_tensor(grads.get(var.as_tensor()).unwrap())
-                        .unwrap();
-                black_box(p.backward(&theta, &gm).unwrap().len())
-            })
-        });
-        g.finish();
-    }
-}
+include!("common/splat_iteration.rs");
 
 criterion_group!(benches, bench_splat);
 criterion_main!(benches);

@@ -7,6 +7,12 @@ mod progress;
 
 use clap::{Parser, Subcommand};
 
+// The splat iteration allocates and frees ~100 MiB of tape per call; glibc hands blocks that
+// large back to the kernel (munmap, TLB shootdowns across threads, fresh page faults), which
+// cost a third of an iteration. mimalloc keeps and reuses them (BENCHMARKS.md §2).
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 /// ifslab — the fractal inverse problem, from images, point clouds and textures.
 #[derive(Parser, Debug)]
 #[command(name = "ifslab", version, about, long_about = None)]
@@ -33,6 +39,8 @@ enum Command {
     Invert(cmd::invert::Args),
     /// Run the inversion described by a config file.
     Run(cmd::run::Args),
+    /// Plot the loss landscape of a run: the objective on a 2-D slice through its code.
+    Landscape(cmd::landscape::Args),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -46,5 +54,6 @@ fn main() -> anyhow::Result<()> {
         Command::Texture(a) => cmd::texture::run(a),
         Command::Invert(a) => cmd::invert::run(a),
         Command::Run(a) => cmd::run::run(a),
+        Command::Landscape(a) => cmd::landscape::run(a),
     }
 }

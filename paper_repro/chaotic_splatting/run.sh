@@ -2,8 +2,8 @@
 # Reproduction of "Learning Image Fractals Using Chaotic Differentiable Point Splatting"
 # at CPU scale: strategies compared on the same targets from random starts (the paper's
 # setting) and from an EM start (this project's addition). Writes results/.
-#   paper_repro/chaotic_splatting/run.sh            # ~30 min on 2 cores
-#   IFSLAB=target/release/ifslab ITERS=400 paper_repro/chaotic_splatting/run.sh   # quicker
+#   paper_repro/chaotic_splatting/run.sh            # ~40 min on 2 cores (3 seeds)
+#   IFSLAB=target/release/ifslab ITERS=400 SEEDS=0 paper_repro/chaotic_splatting/run.sh   # quicker
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 root="$(cd "$here/../.." && pwd)"
@@ -18,11 +18,14 @@ SIZE="${SIZE:-96}"
 out="$here/results"
 mkdir -p "$out/configs" "$out/runs"
 
-# config NAME TARGET MAPS INIT STRATEGY-BLOCK
+SEEDS="${SEEDS:-0 1 2}"
+
+# config NAME TARGET MAPS INIT STRATEGY-BLOCK  (one file per seed: NAME-sSEED)
 config() {
-  local name=$1 target=$2 maps=$3 init=$4 strategy=$5
-  cat > "$out/configs/$name.toml" <<TOML
-seed = 0
+  local name=$1 target=$2 maps=$3 init=$4 strategy=$5 seed
+  for seed in $SEEDS; do
+  cat > "$out/configs/$name-s$seed.toml" <<TOML
+seed = $seed
 iterations = $ITERS
 checkpoint_every = 0
 
@@ -41,6 +44,7 @@ warmup = 10
 
 $strategy
 TOML
+  done
 }
 
 adam='[strategy]
@@ -87,4 +91,15 @@ for cfg in "$out"/configs/*.toml; do
   "$IFSLAB" run "$cfg" -o "$dir"
   rm -f "$dir/checkpoint.json"
 done
+# Loss landscapes (this project's addition): slices through the true Sierpiński code and
+# through what a random start and an EM start recovered (seed 0).
+land() {
+  local run=$1 at=$2 png="$out/landscapes/$1-$2.png"
+  [ -f "$png" ] || "$IFSLAB" landscape "$out/runs/$run" --at "$at" --resolution 41 --extent 1 --streams 2 -o "$png"
+}
+mkdir -p "$out/landscapes"
+land em-hybrid-sierpinski-s0 truth
+land em-hybrid-sierpinski-s0 recovered
+land random-hybrid-sierpinski-s0 recovered
+land random-adam-maple-s0 recovered
 python3 "$here/summarise.py" "$out"

@@ -7,6 +7,10 @@
 //!
 //! Run: `CARGO_TARGET_DIR=… cargo bench -p ifslab-strategies --bench em`.
 
+/// The allocator the `ifslab` binary ships with, so the figures are what users get.
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use ifslab::chaos::trajectory_rng;
 use ifslab::model::Similitude;

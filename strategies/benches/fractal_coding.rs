@@ -7,6 +7,10 @@
 //! reused output buffer. `bilinear_image_crate`
 //! (single-threaded, allocating) is there for reference.
 
+/// The allocator the `ifslab` binary ships with, so the figures are what users get.
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 use std::path::Path;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};

@@ -4,6 +4,7 @@ pub mod codes;
 pub mod demo;
 pub mod fit_points;
 pub mod invert;
+pub mod landscape;
 pub mod render;
 pub mod run;
 pub mod sample;

@@ -5,8 +5,13 @@ use num_traits::Float;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-/// Output pixels per tile side.
-const TILE: usize = 16;
+/// Tiles span about this many supersampled pixels per side (at least [`MIN_TILE`] output
+/// pixels): large enough that few footprints straddle two tiles (each straddling point is
+/// splatted once per tile it touches), small enough to spread the work over threads.
+const TILE_SUBPIXELS: usize = 64;
+
+/// Fewest output pixels per tile side.
+const MIN_TILE: usize = 16;
 
 /// How splats combine on the supersampled grid.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -41,7 +46,7 @@ pub struct SplatGrid {
 /// What the forward pass keeps: points in pixel space, their tile bins and, for coverage,
 /// the transmittance `Π(1 − α)` of every supersampled pixel (tile-major).
 #[derive(Clone, Debug)]
-pub struct SplatState<T> {
+pub struct SplatState<T: SplatReal> {
     uv: Vec<[T; 2]>,
     /// `tile_start[t]..tile_start[t+1]` indexes `entries` for tile `t`.
     tile_start: Vec<usize>,
@@ -51,10 +56,10 @@ pub struct SplatState<T> {
     coords: Vec<[T; 2]>,
     /// Tiles with at least one entry, in order; `trans` holds one buffer per used tile.
     used: Vec<usize>,
-    trans: Vec<T>,
+    trans: Pooled<T>,
 }
 
-impl<T> SplatState<T> {
+impl<T: SplatReal> SplatState<T> {
     /// Points in supersampled pixel coordinates.
     pub fn uv(&self) -> &[[T; 2]] {
         &self.uv
@@ -69,6 +74,9 @@ fn c<T: Float>(x: f64) -> T {
 struct Geometry {
     gw: usize,
     gh: usize,
+    /// Output pixels per tile side.
+    tp: usize,
+    /// Supersampled pixels per tile side.
     ts: usize,
     tiles_x: usize,
     tiles_y: usize,
@@ -79,12 +87,14 @@ struct Geometry {
 impl SplatGrid {
     fn geometry(&self) -> Geometry {
         let s = self.supersample;
+        let tp = (TILE_SUBPIXELS / s).max(MIN_TILE);
         Geometry {
             gw: self.width * s,
             gh: self.height * s,
-            ts: TILE * s,
-            tiles_x: self.width.div_ceil(TILE),
-            tiles_y: self.height.div_ceil(TILE),
+            tp,
+            ts: tp * s,
+            tiles_x: self.width.div_ceil(tp),
+            tiles_y: self.height.div_ceil(tp),
             r: self.radius * self.sigma,
             eps: (-0.5 * self.radius * self.radius).exp(),
         }
@@ -277,8 +287,8 @@ impl Geometry {
         TileGeom {
             ox: tx * self.ts,
             oy: ty * self.ts,
-            pw: TILE.min(grid.width - tx * TILE),
-            ph: TILE.min(grid.height - ty * TILE),
+            pw: self.tp.min(grid.width - tx * self.tp),
+            ph: self.tp.min(grid.height - ty * self.tp),
         }
     }
 
@@ -405,12 +415,81 @@ fn tile_backward<T: SplatReal, const COVERAGE: bool>(
     out
 }
 
+/// Buffers at least this long (elements) go back to the pool when dropped.
+const POOL_MIN_LEN: usize = 1 << 18;
+
+/// Buffers the pool keeps per precision.
+const POOL_SLOTS: usize = 2;
+
+/// A tile buffer that returns to its precision's pool when dropped.
+///
+/// The coverage transmittance of one call is ~100 MiB at the paper's setting (1024², 5×).
+/// Freshly allocated every iteration, it was returned to the kernel and page-faulted back in
+/// each time (a quarter of an iteration's time, BENCHMARKS.md §2); recycled, its pages stay
+/// resident. The pool holds at most [`POOL_SLOTS`] buffers; [`release_buffers`] empties it.
+#[derive(Clone, Debug)]
+pub struct Pooled<T: SplatReal>(Vec<T>);
+
+impl<T: SplatReal> Pooled<T> {
+    /// A buffer of `len` copies of `fill`, recycled from the pool when one is there.
+    fn filled(len: usize, fill: T) -> Self {
+        let recycled = if len >= POOL_MIN_LEN {
+            T::buffer_pool().lock().ok().and_then(|mut p| p.pop())
+        } else {
+            None
+        };
+        let mut v = recycled.unwrap_or_default();
+        v.clear();
+        v.resize(len, fill);
+        Pooled(v)
+    }
+}
+
+impl<T: SplatReal> std::ops::Deref for Pooled<T> {
+    type Target = [T];
+    fn deref(&self) -> &[T] {
+        &self.0
+    }
+}
+
+impl<T: SplatReal> std::ops::DerefMut for Pooled<T> {
+    fn deref_mut(&mut self) -> &mut [T] {
+        &mut self.0
+    }
+}
+
+impl<T: SplatReal> Drop for Pooled<T> {
+    fn drop(&mut self) {
+        if self.0.capacity() >= POOL_MIN_LEN
+            && let Ok(mut pool) = T::buffer_pool().lock()
+            && pool.len() < POOL_SLOTS
+        {
+            pool.push(std::mem::take(&mut self.0));
+        }
+    }
+}
+
+/// Frees the recycled splat buffers of both precisions (they are otherwise kept for the next
+/// call).
+pub fn release_buffers() {
+    if let Ok(mut p) = f32::buffer_pool().lock() {
+        p.clear();
+    }
+    if let Ok(mut p) = f64::buffer_pool().lock() {
+        p.clear();
+    }
+}
+
 /// The float types the kernel runs in, with its two inner loops over one point's footprint
 /// (rows padded to a multiple of [`LANES`]). The generic bodies define the arithmetic; `f32`
 /// also has AVX2 versions doing the same operations lane by lane in the same order (no fused
 /// multiply–adds, the same fixed-order lane reduction), so results are bit-identical
 /// whichever runs.
-pub trait SplatReal: Float + Send + Sync + 'static {
+pub trait SplatReal: Float + Send + Sync + std::fmt::Debug + 'static {
+    /// This precision's pool of recycled tile buffers (see [`Pooled`]).
+    #[doc(hidden)]
+    fn buffer_pool() -> &'static std::sync::Mutex<Vec<Vec<Self>>>;
+
     /// Blends the footprint `wx ⊗ wy` into `buf` starting at `base` (row stride `stride`).
     #[doc(hidden)]
     #[inline(always)]
@@ -448,9 +527,19 @@ pub trait SplatReal: Float + Send + Sync + 'static {
     }
 }
 
-impl SplatReal for f64 {}
+impl SplatReal for f64 {
+    fn buffer_pool() -> &'static std::sync::Mutex<Vec<Vec<f64>>> {
+        static POOL: std::sync::Mutex<Vec<Vec<f64>>> = std::sync::Mutex::new(Vec::new());
+        &POOL
+    }
+}
 
 impl SplatReal for f32 {
+    fn buffer_pool() -> &'static std::sync::Mutex<Vec<Vec<f32>>> {
+        static POOL: std::sync::Mutex<Vec<Vec<f32>>> = std::sync::Mutex::new(Vec::new());
+        &POOL
+    }
+
     #[inline(always)]
     fn footprint_forward<const COVERAGE: bool>(
         simd: bool,
@@ -713,7 +802,7 @@ pub fn forward<T: SplatReal>(grid: &SplatGrid, uv: Vec<[T; 2]>) -> (Vec<T>, Spla
     let used: Vec<usize> = (0..n_tiles)
         .filter(|&t| tile_start[t + 1] > tile_start[t])
         .collect();
-    let mut bufs = vec![if coverage { T::one() } else { T::zero() }; used.len() * tl];
+    let mut bufs = Pooled::filled(used.len() * tl, if coverage { T::one() } else { T::zero() });
     let pooled: Vec<Vec<T>> = bufs
         .par_chunks_mut(tl)
         .zip(used.par_iter())
@@ -736,7 +825,7 @@ pub fn forward<T: SplatReal>(grid: &SplatGrid, uv: Vec<[T; 2]>) -> (Vec<T>, Spla
         }
     }
     if !coverage {
-        bufs = Vec::new();
+        bufs = Pooled(Vec::new());
     }
     (
         image,

@@ -20,7 +20,8 @@
 //! the framing, then through each trajectory by a backward scan over its maps
 //! (`λ_k = A_{i_k}ᵀ λ_{k+1} + ∂L/∂x_k`, `∂L/∂A_i += λ_{k+1} x_kᵀ`, `∂L/∂b_i += λ_{k+1}`).
 //!
-//! The grid is processed in tiles of 16×16 output pixels: points are binned to the tiles
+//! The grid is processed in tiles of about 64×64 supersampled pixels (at least 16×16 output
+//! pixels): points are binned to the tiles
 //! their footprint touches by a stable counting sort, and each tile is splatted by one
 //! thread in point order. Every floating-point sum has a fixed order, so forward and reverse
 //! are bit-identical for any thread count.
@@ -40,7 +41,7 @@ use serde::{Deserialize, Serialize};
 
 pub use candle_op::{SplatOp, maps_from_tensor, maps_to_tensor};
 pub use frame::{FrameState, SplatFraming};
-pub use kernel::{Blend, SplatGrid, SplatReal};
+pub use kernel::{Blend, SplatGrid, SplatReal, release_buffers};
 pub use trajectories::TrajectoryTape;
 
 use crate::chaos::ChaosGame;
@@ -143,7 +144,7 @@ impl SplatConfig {
 
 /// What the forward pass keeps for the reverse pass.
 #[derive(Clone, Debug)]
-pub struct SplatTape<T> {
+pub struct SplatTape<T: SplatReal> {
     /// Trajectory states and map indices.
     pub trajectories: TrajectoryTape,
     /// The framing and what its reverse pass needs.

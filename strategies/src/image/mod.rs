@@ -5,19 +5,22 @@
 //! - [`init`]: the starting code (random, given, or fitted by EM to the target's points);
 //! - [`problem`]: θ → maps → splat → composite loss and its gradient;
 //! - [`config`]: the validated TOML configuration of a run;
-//! - [`run`]: initial code, solver, executor, checkpoint and resume.
+//! - [`run`]: initial code, solver, executor, checkpoint and resume;
+//! - [`landscape`]: the objective on a 2-D slice of parameter space (loss landscapes).
 //!
 //! ## References
 //! - Djeacoumar et al., *Learning Image Fractals Using Chaotic Differentiable Point Splatting*.
 
 pub mod config;
 pub mod init;
+pub mod landscape;
 pub mod problem;
 pub mod run;
 pub mod target;
 
 pub use config::{InversionConfig, StrategyConfig, TargetConfig};
 pub use init::{InitKind, initial_theta};
+pub use landscape::{Directions, Landscape, LandscapeConfig, landscape};
 pub use problem::ImageProblem;
 pub use run::{InversionOutcome, run_inversion};
 pub use target::{Polarity, frame_target, load_target};

@@ -4,7 +4,7 @@
 
 use candle_core::{DType, Device, Tensor, Var};
 use ifslab::chaos::mix_seed;
-use ifslab::loss::{ImageLoss, LossConfig, MsMse, Objective};
+use ifslab::loss::{ImageLoss, LossBreakdown, LossConfig, MsMse, Objective};
 use ifslab::model::{Affine2, Parameterisation};
 use ifslab::render::splat::{self, SplatConfig, SplatOp, maps_from_tensor, maps_to_tensor};
 
@@ -82,6 +82,16 @@ impl ImageProblem {
     pub fn render(&self, theta: &[f64], stream: u64) -> Result<Vec<f32>> {
         let maps = self.param.decode(theta)?;
         Ok(splat::forward::<f32>(&self.splat, &maps, mix_seed(self.seed, stream))?.0)
+    }
+
+    /// The objective's terms at θ on random stream `stream`, without a gradient (for loss
+    /// landscapes and evaluation).
+    pub fn loss_breakdown(&self, theta: &[f64], stream: u64) -> Result<LossBreakdown> {
+        let maps = self.param.decode(theta)?;
+        let img = splat::forward::<f32>(&self.splat, &maps, mix_seed(self.seed, stream))?.0;
+        let pred = Tensor::from_vec(img, (self.splat.height, self.splat.width), &Device::Cpu)
+            .map_err(tensor_err)?;
+        Ok(self.objective.evaluate(&pred, &maps)?.breakdown)
     }
 }
 
