@@ -220,3 +220,48 @@ fn resume_is_bit_identical() {
         assert_eq!(iters, (0..20).collect::<Vec<u64>>(), "{name}");
     }
 }
+
+/// The brief's determinism rule, end to end: the same seed gives the same θ whatever the
+/// thread count — chaos game, splat, every loss term (LPIPS too when its weights are
+/// present) and the annealing draws.
+#[test]
+fn same_seed_same_code_with_any_thread_count() {
+    use ifslab_strategies::annealing::AnnealingConfig;
+    use ifslab_strategies::hybrid::HybridConfig;
+
+    let size = 48;
+    let t = target("sierpinski", size);
+    let mut cfg = base_config(
+        size,
+        12,
+        StrategyConfig::Hybrid(HybridConfig {
+            anneal_every: 4,
+            annealing: AnnealingConfig {
+                candidates: 3,
+                ..AnnealingConfig::default()
+            },
+            ..HybridConfig::default()
+        }),
+    );
+    cfg.generator.trajectories = 300;
+    let lpips = ifslab::loss::default_lpips_weights_path().is_file();
+    if lpips {
+        cfg.loss.lpips_weight = 2.0;
+    } else {
+        eprintln!("LPIPS weights absent: checking the other loss terms only");
+    }
+    let run = |threads: usize| {
+        let dir = tempfile::tempdir().unwrap();
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| run_inversion(&cfg, t.clone(), dir.path(), false, vec![]).unwrap())
+    };
+    let one = run(1);
+    let three = run(3);
+    assert_eq!(one.iterations, 12);
+    assert_eq!(one.lpips_note.is_none(), lpips, "LPIPS used iff its weights are present");
+    assert_eq!(one.theta, three.theta, "θ depends on the thread count");
+    assert_eq!(one.final_loss.to_bits(), three.final_loss.to_bits());
+}
