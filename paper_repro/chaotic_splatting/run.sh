@@ -82,6 +82,18 @@ for t in sierpinski:3 fern:4 maple:4 dragon:2 koch:4 tree:4; do
   config "em-hybrid-$name" "$name" "$k" em "$hybrid_cold"
 done
 
+# A longer budget on the target every random start failed on: does the annealing pay off
+# when it gets the paper's interval (every 250 iterations, first half: 6 phases)?
+ITERS_LONG="${ITERS_LONG:-3000}"
+hybrid_250='[strategy]
+kind = "hybrid"
+anneal_every = 250
+anneal_fraction = 0.5'
+saved_iters=$ITERS; ITERS=$ITERS_LONG
+config "random_${ITERS_LONG}it-adam-sierpinski" sierpinski 3 random "$adam"
+config "random_${ITERS_LONG}it-hybrid-sierpinski" sierpinski 3 random "$hybrid_250"
+ITERS=$saved_iters
+
 for cfg in "$out"/configs/*.toml; do
   name=$(basename "$cfg" .toml)
   dir="$out/runs/$name"

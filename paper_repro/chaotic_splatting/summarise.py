@@ -44,6 +44,8 @@ lines += [
 ]
 pairs = sorted({(st, sg) for (_, st, sg) in runs})
 for st, sg in pairs:
+    if not common <= {t for (t, a, b) in runs if (a, b) == (st, sg)}:
+        continue  # compare only pairs run on every common target
     v = [d["iou"] for (t, a, b), rs in runs.items() if (a, b) == (st, sg) and t in common for _, d in rs]
     if v:
         lines.append(f"| {st} | {sg} | {mean(v):.3f} | {sum(x >= 0.6 for x in v)} | {len(v)} |")

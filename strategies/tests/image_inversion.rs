@@ -265,3 +265,44 @@ fn same_seed_same_code_with_any_thread_count() {
     assert_eq!(one.theta, three.theta, "θ depends on the thread count");
     assert_eq!(one.final_loss.to_bits(), three.final_loss.to_bits());
 }
+
+/// `renderer.sigma_final`: gradient steps and annealing costs see σ moved geometrically
+/// from `sigma` (t = 0) to `sigma_final` (t = T).
+#[test]
+fn sigma_schedule_renders_with_the_scheduled_sigma() {
+    use ifslab_strategies::annealing::Anneal;
+    use ifslab_strategies::driver::Differentiable;
+    use ifslab_strategies::image::ImageProblem;
+
+    let size = 32;
+    let t = target("sierpinski", size);
+    let mut cfg = base_config(size, 10, StrategyConfig::Adam(AdamConfig::default()));
+    cfg.generator.trajectories = 100;
+    let maps = library::builtin("sierpinski").unwrap().affine2().unwrap();
+    let theta = cfg.model.parameterisation.build().encode(&maps).unwrap();
+    let with_sigma = |sigma: f64, end: Option<f64>| {
+        let mut c = cfg.clone();
+        c.renderer.sigma = sigma;
+        c.renderer.sigma_final = end;
+        ImageProblem::from_config(&c, t.clone()).unwrap()
+    };
+    let scheduled = with_sigma(1.0, Some(0.25));
+    let (start, middle, end) = (
+        with_sigma(1.0, None),
+        with_sigma(0.5, None),
+        with_sigma(0.25, None),
+    );
+    let loss = |p: &ImageProblem, iter: u64| p.evaluate(&theta, iter).unwrap().loss;
+    assert_eq!(loss(&scheduled, 0), loss(&start, 0));
+    assert_eq!(loss(&scheduled, 5), loss(&middle, 5));
+    assert_eq!(loss(&scheduled, 10), loss(&end, 10));
+    assert_ne!(loss(&start, 5), loss(&middle, 5), "σ must matter to the loss");
+    let cost = |p: &ImageProblem, frac: f64| p.anneal_cost(&theta, 7, frac).unwrap();
+    assert_eq!(cost(&scheduled, 0.5), cost(&middle, 0.0));
+    assert_eq!(cost(&scheduled, 1.0), cost(&end, 0.3));
+    // Landscapes and evaluation renders use the σ the run ends with.
+    assert_eq!(
+        scheduled.loss_breakdown(&theta, 3).unwrap().total,
+        end.loss_breakdown(&theta, 3).unwrap().total
+    );
+}

@@ -44,6 +44,9 @@ pub struct Args {
     /// Gaussian σ in supersampled pixels.
     #[arg(long, default_value_t = 1.0)]
     pub sigma: f64,
+    /// σ at the last iteration: σ shrinks geometrically from --sigma to it (coarse-to-fine).
+    #[arg(long)]
+    pub sigma_final: Option<f64>,
     /// Chaos-game trajectories per iteration.
     #[arg(long, default_value_t = 2000)]
     pub trajectories: usize,
@@ -148,6 +151,7 @@ fn config_from_flags(a: &Args) -> anyhow::Result<InversionConfig> {
         renderer: RendererConfig {
             supersample: a.supersample,
             sigma: a.sigma,
+            sigma_final: a.sigma_final,
             ..RendererConfig::default()
         },
         loss: Default::default(),

@@ -83,13 +83,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     };
     let target = prepare_target(&cfg)?;
-    let problem = ImageProblem::new(
-        cfg.model.parameterisation.build(),
-        cfg.splat_config(),
-        cfg.loss.clone(),
-        target,
-        cfg.seed,
-    )?;
+    let problem = ImageProblem::from_config(&cfg, target)?;
     let theta = problem
         .parameterisation()
         .encode(&maps)

@@ -25,8 +25,10 @@ use crate::error::{Error, Result};
 /// What annealing needs from a problem: a cheap cost on a chosen random stream, so several
 /// candidates can be compared on identical trajectories.
 pub trait Anneal {
-    /// The annealing cost (the image MSE for image inversion) of θ on random stream `stream`.
-    fn anneal_cost(&self, theta: &[f64], stream: u64) -> Result<f64>;
+    /// The annealing cost (the image MSE for image inversion) of θ on random stream `stream`
+    /// at progress `frac = t/T` of the run (a problem whose cost changes over the run, such as
+    /// the image problem with a σ schedule, evaluates it as at that point).
+    fn anneal_cost(&self, theta: &[f64], stream: u64, frac: f64) -> Result<f64>;
 }
 
 /// Hyper-parameters of the Metropolis steps.
@@ -108,7 +110,7 @@ pub fn metropolis_phase<O: Anneal + Differentiable>(
     let std = cfg.noise * progress;
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(ifslab::chaos::mix_seed(seed, stream));
     let mut cost = problem.problem("anneal_cost", |p| {
-        p.anneal_cost(theta, stream).map_err(to_argmin)
+        p.anneal_cost(theta, stream, frac).map_err(to_argmin)
     })?;
     let mut accepted = 0;
     for _ in 0..cfg.candidates {
@@ -121,7 +123,7 @@ pub fn metropolis_phase<O: Anneal + Differentiable>(
             Ok(())
         })?;
         let c = problem.problem("anneal_cost", |p| {
-            p.anneal_cost(&cand, stream).map_err(to_argmin)
+            p.anneal_cost(&cand, stream, frac).map_err(to_argmin)
         })?;
         let delta = c - cost;
         let u: f64 = rng.random();

@@ -97,15 +97,8 @@ pub fn run_inversion(
     } else {
         None
     };
-    let param = cfg.model.parameterisation.build();
-    let theta0 = initial_theta(cfg, param.as_ref(), &target)?;
-    let problem = ImageProblem::new(
-        param,
-        cfg.splat_config(),
-        cfg.loss.clone(),
-        target,
-        cfg.seed,
-    )?;
+    let theta0 = initial_theta(cfg, cfg.model.parameterisation.build().as_ref(), &target)?;
+    let problem = ImageProblem::from_config(cfg, target)?;
     let lpips_note = problem.lpips_skip_reason().map(str::to_owned);
     let log = CsvLog::open(dir.join(LOG_FILE), &TERMS, resume_from)?;
     let ckpt = JsonCheckpoint::new(&ckpt_path, cfg.checkpoint_every, resume, cfg.iterations);
