@@ -78,9 +78,7 @@ fn lpips(c: &mut Criterion) {
     let net = match Lpips::try_load_default() {
         Ok(Some(net)) => net,
         Ok(None) => {
-            eprintln!(
-                "skipping LPIPS benchmark: no weights (run `python3 scripts/fetch_lpips.py`)"
-            );
+            eprintln!("skipping LPIPS benchmark: no weights (run `ifslab weights fetch`)");
             return;
         }
         Err(e) => panic!("{e}"),

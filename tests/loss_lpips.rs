@@ -2,14 +2,14 @@
 //! when `data/weights/lpips_alexnet.safetensors` (or `$IFSLAB_LPIPS_WEIGHTS`) exists —
 //! agreement with the numpy reference in tests/fixtures/loss_lpips_reference.json, the
 //! identity and ordering properties, and the autograd gradient against finite differences.
-//! Without the weights those tests print a skip message: run `python3 scripts/fetch_lpips.py`.
+//! Without the weights those tests print a skip message: run `ifslab weights fetch`.
 
 use std::collections::HashMap;
 use std::sync::OnceLock;
 
 use candle_core::{DType, Device, Tensor, Var};
 use ifslab::Error;
-use ifslab::loss::lpips::{LPIPS_WEIGHTS_ENV, LPIPS_WEIGHTS_RELATIVE, expected_tensors};
+use ifslab::loss::lpips::{LPIPS_WEIGHTS_ENV, expected_tensors};
 use ifslab::loss::{LossConfig, Lpips, Objective, default_lpips_weights_path};
 
 // ------------------------------------------------------------------ always-run error tests
@@ -28,7 +28,7 @@ fn missing_file_says_how_to_fetch_it() {
     let path = dir.path().join("lpips_alexnet.safetensors");
     let msg = weights_error(&path);
     assert!(msg.contains("not found"), "{msg}");
-    assert!(msg.contains("scripts/fetch_lpips.py"), "{msg}");
+    assert!(msg.contains("ifslab weights fetch"), "{msg}");
     assert!(msg.contains(LPIPS_WEIGHTS_ENV), "{msg}");
     assert!(msg.contains(&path.display().to_string()), "{msg}");
 }
@@ -40,7 +40,7 @@ fn corrupt_file_is_reported_as_such() {
     std::fs::write(&path, b"\x10\x00\x00\x00\x00\x00\x00\x00{not json at all").unwrap();
     let msg = weights_error(&path);
     assert!(msg.contains("cannot be read as safetensors"), "{msg}");
-    assert!(msg.contains("fetch_lpips.py"), "{msg}");
+    assert!(msg.contains("ifslab weights fetch"), "{msg}");
 }
 
 #[test]
@@ -88,19 +88,6 @@ fn wrong_or_missing_tensors_are_named() {
     assert!(msg.contains("`lin2.weight` has negative weights"), "{msg}");
 }
 
-#[test]
-fn default_path_is_under_the_workspace_root() {
-    if std::env::var_os(LPIPS_WEIGHTS_ENV).is_some() {
-        eprintln!("{LPIPS_WEIGHTS_ENV} is set; not checking the default path");
-        return;
-    }
-    let p = default_lpips_weights_path();
-    assert_eq!(
-        p,
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(LPIPS_WEIGHTS_RELATIVE)
-    );
-}
-
 // ------------------------------------------------------------------ tests with real weights
 
 fn net() -> Option<&'static Lpips> {
@@ -110,7 +97,7 @@ fn net() -> Option<&'static Lpips> {
     });
     if net.is_none() {
         eprintln!(
-            "skipping: no LPIPS weights at {} (run `python3 scripts/fetch_lpips.py`)",
+            "skipping: no LPIPS weights at {} (run `ifslab weights fetch`)",
             default_lpips_weights_path().display()
         );
     }

@@ -41,6 +41,8 @@ enum Command {
     Run(cmd::run::Args),
     /// Plot the loss landscape of a run: the objective on a 2-D slice through its code.
     Landscape(cmd::landscape::Args),
+    /// Where the LPIPS weights are looked for; `weights fetch` downloads and converts them.
+    Weights(cmd::weights::Args),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -55,5 +57,6 @@ fn main() -> anyhow::Result<()> {
         Command::Invert(a) => cmd::invert::run(a),
         Command::Run(a) => cmd::run::run(a),
         Command::Landscape(a) => cmd::landscape::run(a),
+        Command::Weights(a) => cmd::weights::run(a),
     }
 }

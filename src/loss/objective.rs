@@ -28,7 +28,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
 use crate::loss::candle_ops::{Downsample2x, apply_loss, image_hw};
-use crate::loss::lpips::{Lpips, LpipsFeatures, default_lpips_weights_path};
+use crate::loss::lpips::{FETCH_HINT, Lpips, LpipsFeatures, default_lpips_weights_path};
 use crate::loss::{DSsim, Moments, MsMse, MsMseReduction, Regulariser};
 use crate::model::affine::Affine2;
 
@@ -52,7 +52,7 @@ pub struct LossConfig {
     /// Refuse to run without LPIPS weights instead of dropping the term.
     pub lpips_required: bool,
     /// The LPIPS weights file; default: `$IFSLAB_LPIPS_WEIGHTS`, else
-    /// `data/weights/lpips_alexnet.safetensors` under the workspace root.
+    /// `lpips_alexnet.safetensors` in the per-user cache folder (`ifslab weights` prints it).
     pub lpips_weights: Option<PathBuf>,
     /// Weight of the moments loss (paper's ablation; default 0 = off).
     pub moments_weight: f64,
@@ -220,9 +220,8 @@ impl Objective {
                 lpips = Some((net, feats));
             } else {
                 let reason = format!(
-                    "LPIPS term skipped: no weights file at {}; run `python3 scripts/fetch_lpips.py` \
-                     or set IFSLAB_LPIPS_WEIGHTS (or lpips_weights in the config). The loss uses \
-                     the other terms.",
+                    "LPIPS term skipped: no weights file at {}; to include it, {FETCH_HINT} \
+                     (or lpips_weights in the config). The loss uses the other terms.",
                     path.display()
                 );
                 LPIPS_SKIP_NOTICE.call_once(|| eprintln!("warning: {reason}"));

@@ -9,6 +9,7 @@ pub mod render;
 pub mod run;
 pub mod sample;
 pub mod texture;
+pub mod weights;
 
 use std::path::Path;
 
