@@ -1,6 +1,6 @@
 //! Evaluation metrics on rendered images and masks.
 //!
-//! Mask metrics: [`iou`], [`box_counting_dimension`]. Image metrics on row-major grey
+//! Mask metrics: [`iou`], [`f1`], [`box_counting_dimension`]. Image metrics on row-major grey
 //! images in [0, 1]: [`psnr`], [`ssim`] (the loss module's zero-padded SSIM with an
 //! 11-pixel, σ = 1.5 window), [`lpips`] (AlexNet v0.1), their masked variants, and
 //! [`paper_metrics`], the chaotic-splatting paper's evaluation protocol: a 12.5% border crop
@@ -38,6 +38,29 @@ pub fn iou(a: &[bool], b: &[bool]) -> Result<f64> {
         1.0
     } else {
         inter as f64 / uni as f64
+    })
+}
+
+/// F1 score (Dice coefficient) of a predicted mask against a target mask of equal length:
+/// `2·|a ∧ b| / (|a| + |b|)`; 1 when both are empty. Per image it is `2·IoU/(1 + IoU)`; the
+/// paper reports both because their means over many images differ.
+pub fn f1(pred: &[bool], target: &[bool]) -> Result<f64> {
+    if pred.len() != target.len() {
+        return Err(Error::Shape(format!(
+            "masks of {} and {} pixels",
+            pred.len(),
+            target.len()
+        )));
+    }
+    let (mut inter, mut total) = (0u64, 0u64);
+    for (&x, &y) in pred.iter().zip(target) {
+        inter += u64::from(x && y);
+        total += u64::from(x) + u64::from(y);
+    }
+    Ok(if total == 0 {
+        1.0
+    } else {
+        2.0 * inter as f64 / total as f64
     })
 }
 
@@ -234,14 +257,19 @@ pub struct ImageMetrics {
     pub lpips: Option<f64>,
     /// IoU of the `> 0` masks inside the crop.
     pub iou: f64,
+    /// F1 score (Dice) of the `> 0` masks inside the crop.
+    pub f1: f64,
     /// Number of foreground pixels the PSNR and SSIM averaged over.
     pub foreground_pixels: usize,
 }
 
 /// The chaotic-splatting paper's evaluation: crop [`EVAL_BORDER_FRACTION`] of each side, then
 /// PSNR and SSIM over the pixels where either image is > 0 (the SSIM map is computed on the
-/// full image, then cropped and masked), IoU of the `> 0` masks, and LPIPS of the cropped
-/// images if `net` is given. Images are row-major, values in [0, 1].
+/// full image, then cropped and masked), IoU and F1 of the `> 0` masks, and LPIPS of the
+/// cropped images if `net` is given (the crop must be at least [`LPIPS_MIN_SIDE`] pixels a
+/// side).
+///
+/// [`LPIPS_MIN_SIDE`]: crate::loss::lpips::LPIPS_MIN_SIDE Images are row-major, values in [0, 1].
 pub fn paper_metrics<T: Real + candle_core::WithDType>(
     pred: &[T],
     target: &[T],
@@ -279,6 +307,7 @@ pub fn paper_metrics<T: Real + candle_core::WithDType>(
         ssim,
         lpips,
         iou: iou(&pm, &tm)?,
+        f1: f1(&pm, &tm)?,
         foreground_pixels,
     })
 }
@@ -286,6 +315,19 @@ pub fn paper_metrics<T: Real + candle_core::WithDType>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn f1_is_dice_and_agrees_with_iou_per_image() {
+        let a = [true, true, true, false, false, true];
+        let b = [true, false, true, true, false, false];
+        // |a ∧ b| = 2, |a| = 4, |b| = 3: F1 = 4/7, IoU = 2/5.
+        let (f, j) = (f1(&a, &b).unwrap(), iou(&a, &b).unwrap());
+        assert!((f - 4.0 / 7.0).abs() < 1e-15 && (j - 0.4).abs() < 1e-15);
+        assert!((f - 2.0 * j / (1.0 + j)).abs() < 1e-15);
+        assert_eq!(f1(&[false; 3], &[false; 3]).unwrap(), 1.0);
+        assert_eq!(f1(&[true, false], &[false, true]).unwrap(), 0.0);
+        assert!(f1(&[true], &[true, false]).is_err());
+    }
 
     #[test]
     fn full_square_has_dimension_two() {

@@ -2,7 +2,7 @@
 //! images of even and odd sizes (proptest over random images), and the regulariser's
 //! gradient through both parameterisations.
 
-use ifslab::loss::{DSsim, ImageLoss, Moments, MsMse, MsMseReduction, Regulariser};
+use ifslab::loss::{ConditionTerm, DSsim, ImageLoss, Moments, MsMse, MsMseReduction, Regulariser};
 use ifslab::model::param::{Naive, Parameterisation, Svd};
 use proptest::prelude::*;
 
@@ -119,7 +119,21 @@ proptest! {
 }
 
 fn check_regulariser(param: &dyn Parameterisation, theta: &[f64]) -> Result<(), TestCaseError> {
-    let reg = Regulariser::default();
+    for condition in [ConditionTerm::Paper, ConditionTerm::Reference] {
+        let reg = Regulariser {
+            condition,
+            ..Regulariser::default()
+        };
+        check_regulariser_form(&reg, param, theta)?;
+    }
+    Ok(())
+}
+
+fn check_regulariser_form(
+    reg: &Regulariser,
+    param: &dyn Parameterisation,
+    theta: &[f64],
+) -> Result<(), TestCaseError> {
     let f = |th: &[f64]| reg.value(&param.decode(th).unwrap()).unwrap();
     let maps = param.decode(theta).unwrap();
     let (_, grad_maps) = reg.value_and_grad(&maps).unwrap();
@@ -134,8 +148,9 @@ fn check_regulariser(param: &dyn Parameterisation, theta: &[f64]) -> Result<(), 
         let fd = (up - down) / (2.0 * step);
         prop_assert!(
             (grad[i] - fd).abs() <= 1e-6 * (1.0 + fd.abs()),
-            "{}: θ[{i}] analytic {} vs finite difference {fd}",
+            "{} ({:?}): θ[{i}] analytic {} vs finite difference {fd}",
             param.name(),
+            reg.condition,
             grad[i]
         );
     }

@@ -1,32 +1,39 @@
 //! The chaotic-splatting paper's regulariser on the maps (not on the image).
 //!
-//! For maps `x ↦ M_i·x + b_i`, `i = 1 … n`, with singular values `σ₁ᵢ ≥ σ₂ᵢ` of `M_i`:
+//! For maps `x ↦ M_i·x + b_i`, `i = 1 … n`, with singular values `σ₁ᵢ ≥ σ₂ᵢ` of `M_i` and
+//! `rᵢ = (σ₁ᵢ + 1)/(σ₂ᵢ + 1)` (a stable stand-in for the condition number), the paper's
+//! Eq. 6 with its weights `λ_reg = 1e-2`, `λ_cond = 10` is
 //!
-//! `R = λ_s·(Σ_i (σ₁ᵢ² + σ₂ᵢ²) + Σ_i ‖b_i‖²) + λ_c·(1/n)·Σ_i ((σ₁ᵢ + 1)/(σ₂ᵢ + 1))²`
+//! `R = λ_s·Σ_i (σ₁ᵢ² + σ₂ᵢ² + ‖b_i‖²) + λ_c·Σ_i (rᵢ − 1)²`,  `λ_s = λ_reg`, `λ_c = λ_reg·λ_cond = 0.1`
 //!
-//! with `λ_s = 1e-2` (weight decay on singular values and offsets: keeps the maps
-//! contractive and the attractor near the origin) and `λ_c = 1e-1` (pulls each map towards
-//! a similitude, whose condition number is 1).
+//! ([`ConditionTerm::Paper`], the default). The authors' reference code instead adds
+//! `λ_c·(1/n)·Σ_i rᵢ²` ([`ConditionTerm::Reference`]): the mean rather than the sum, and
+//! `r²` rather than `(r − 1)²`, which adds the linear push `2λ_c(r − 1)/n` towards
+//! similitudes. Both are available; `paper_repro/chaotic_splatting/README.md` compares them.
+//! The first term (weight decay on singular values and offsets) keeps the maps contractive
+//! and the attractor near the origin; the condition term pulls each map towards a
+//! similitude, whose `r` is 1 (a near-singular map draws as a streak).
 //!
 //! **Gradient** with respect to `M_i` and `b_i` (what [`Parameterisation::backward`] takes):
 //! `Σ_k σ_k² = ‖M‖_F²`, so the first term's gradient is `2λ_s·M` exactly, SVD-free; the
-//! offsets give `2λ_s·b`. For the condition term `f = ((σ₁ + 1)/(σ₂ + 1))²` we use
-//! `∂σ_k/∂M = u_k v_kᵀ` (`M = U·diag(σ)·Vᵀ`):
+//! offsets give `2λ_s·b`. For a condition term `f(r)` we use `∂σ_k/∂M = u_k v_kᵀ`
+//! (`M = U·diag(σ)·Vᵀ`):
 //!
-//! `∂f/∂M = 2r/(σ₂ + 1) · u₁v₁ᵀ − 2r(σ₁ + 1)/(σ₂ + 1)² · u₂v₂ᵀ`, `r = (σ₁ + 1)/(σ₂ + 1)`.
+//! `∂f/∂M = f′(r)·(u₁v₁ᵀ/(σ₂ + 1) − (σ₁ + 1)/(σ₂ + 1)²·u₂v₂ᵀ)`, with `f′ = 2(r − 1)` (paper)
+//! or `2r/n` (reference).
 //!
 //! **Degenerate maps** (`σ₁ = σ₂`, e.g. a rotation-scaling or the zero matrix): the singular
-//! vectors are not unique and `f`, which uses max and min, has a kink. But `f ≥ 1` everywhere
-//! with equality exactly when `σ₁ = σ₂`, so such a map is a global minimiser of the condition
-//! term and `0` is a valid (the minimum-norm) subgradient: we return it whenever
+//! vectors are not unique and `r`, which uses max and min, has a kink. But `r ≥ 1` everywhere
+//! with equality exactly when `σ₁ = σ₂`, so such a map is a global minimiser of either
+//! condition term and `0` is a valid (the minimum-norm) subgradient: we return it whenever
 //! `σ₁ − σ₂ ≤ 1e-12·(1 + σ₁)`. Near-degenerate maps get the formula above, which stays
-//! bounded (`|∂f/∂σ_k| ≤ 2r²`) even though the individual `u_k v_kᵀ` turn.
+//! bounded (`|∂r/∂σ_k| ≤ r`) even though the individual `u_k v_kᵀ` turn.
 //!
 //! [`Parameterisation::backward`]: crate::model::param::Parameterisation::backward
 //!
 //! ## References
 //! - Djeacoumar et al., *Learning Image Fractals Using Chaotic Differentiable Point
-//!   Splatting*, Eurographics 2025 (the regulariser and its weights).
+//!   Splatting*, Eurographics 2025 (Eq. 6 and its weights).
 
 use nalgebra::{Matrix2, Vector2};
 use serde::{Deserialize, Serialize};
@@ -37,14 +44,27 @@ use crate::model::affine::Affine2;
 /// Relative gap below which σ₁ = σ₂ is treated as degenerate.
 const DEGENERATE_GAP: f64 = 1e-12;
 
+/// Which condition term the regulariser adds (see the module docs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ConditionTerm {
+    /// The paper's Eq. 6: `λ_c·Σ_i (rᵢ − 1)²`.
+    #[default]
+    Paper,
+    /// The reference code's: `λ_c·(1/n)·Σ_i rᵢ²`.
+    Reference,
+}
+
 /// The paper's map regulariser (see the module docs); also its config section.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct Regulariser {
-    /// `λ_s`, weight of `Σσ² + Σ‖b‖²` (the paper: 1e-2).
+    /// `λ_s`, weight of `Σσ² + Σ‖b‖²` (the paper's λ_reg: 1e-2).
     pub scale_weight: f64,
-    /// `λ_c`, weight of the mean squared condition term (the paper: 1e-1).
+    /// `λ_c`, weight of the condition term (the paper's λ_reg·λ_cond: 1e-1).
     pub condition_weight: f64,
+    /// The paper's condition term or the reference code's.
+    pub condition: ConditionTerm,
 }
 
 impl Default for Regulariser {
@@ -52,6 +72,7 @@ impl Default for Regulariser {
         Regulariser {
             scale_weight: 1e-2,
             condition_weight: 1e-1,
+            condition: ConditionTerm::Paper,
         }
     }
 }
@@ -109,6 +130,14 @@ impl Regulariser {
         Ok(())
     }
 
+    /// `(f(r), f′(r))` of the condition term for one map of `n`.
+    fn condition(&self, r: f64, n: f64) -> (f64, f64) {
+        match self.condition {
+            ConditionTerm::Paper => ((r - 1.0).powi(2), 2.0 * (r - 1.0)),
+            ConditionTerm::Reference => (r * r / n, 2.0 * r / n),
+        }
+    }
+
     /// `R(maps)`.
     pub fn value(&self, maps: &[Affine2]) -> Result<f64> {
         self.validate()?;
@@ -118,9 +147,9 @@ impl Regulariser {
         for map in maps {
             let (s1, s2) = map.singular_values();
             scale += map.m.norm_squared() + map.b.norm_squared();
-            cond += ((s1 + 1.0) / (s2 + 1.0)).powi(2);
+            cond += self.condition((s1 + 1.0) / (s2 + 1.0), n).0;
         }
-        Ok(self.scale_weight * scale + self.condition_weight * cond / n)
+        Ok(self.scale_weight * scale + self.condition_weight * cond)
     }
 
     /// `(R(maps), ∂R/∂maps)`; each gradient [`Affine2`] holds `∂R/∂M` in `m` and `∂R/∂b` in `b`.
@@ -135,11 +164,10 @@ impl Regulariser {
                 let (s1, s2, u, v) = sorted_svd(&map.m);
                 if s1 - s2 > DEGENERATE_GAP * (1.0 + s1) {
                     let r = (s1 + 1.0) / (s2 + 1.0);
-                    let df1 = 2.0 * r / (s2 + 1.0);
-                    let df2 = -2.0 * r * (s1 + 1.0) / (s2 + 1.0).powi(2);
-                    let c = self.condition_weight / n;
-                    gm += (u.column(0) * v.column(0).transpose()) * (c * df1);
-                    gm += (u.column(1) * v.column(1).transpose()) * (c * df2);
+                    let df = self.condition_weight * self.condition(r, n).1;
+                    // ∂r/∂σ₁ = 1/(σ₂ + 1), ∂r/∂σ₂ = −r/(σ₂ + 1).
+                    gm += (u.column(0) * v.column(0).transpose()) * (df / (s2 + 1.0));
+                    gm += (u.column(1) * v.column(1).transpose()) * (-df * r / (s2 + 1.0));
                 }
                 Affine2 { m: gm, b: gb }
             })
@@ -156,12 +184,42 @@ mod tests {
     fn similitudes_pay_only_the_scale_term() {
         // A rotation-scaling has σ₁ = σ₂ = s: condition term exactly 1, gradient 2λ_s·M.
         let map = Affine2::similitude(0.5, 0.7, false, [0.2, -0.1]);
-        let reg = Regulariser::default();
-        let (v, g) = reg.value_and_grad(&[map]).unwrap();
-        let expected = 1e-2 * (2.0 * 0.25 + 0.05) + 1e-1;
-        assert!((v - expected).abs() < 1e-14, "{v} vs {expected}");
-        assert!((g[0].m - map.m * 2e-2).norm() < 1e-14);
-        assert!((g[0].b - map.b * 2e-2).norm() < 1e-14);
+        // Paper: (r − 1)² = 0; reference code: r²/n = 1.
+        for (condition, cond_value) in [
+            (ConditionTerm::Paper, 0.0),
+            (ConditionTerm::Reference, 1e-1),
+        ] {
+            let reg = Regulariser {
+                condition,
+                ..Regulariser::default()
+            };
+            let (v, g) = reg.value_and_grad(&[map]).unwrap();
+            let expected = 1e-2 * (2.0 * 0.25 + 0.05) + cond_value;
+            assert!((v - expected).abs() < 1e-14, "{v} vs {expected}");
+            assert!((g[0].m - map.m * 2e-2).norm() < 1e-14);
+            assert!((g[0].b - map.b * 2e-2).norm() < 1e-14);
+        }
+    }
+
+    #[test]
+    fn paper_form_is_eq_6_summed_over_maps() {
+        // diag(0.6, 0.2) twice: r = 1.6/1.2, Σ(r − 1)² = 2/9; diag(0.5, 0.5): r = 1.
+        let a = Affine2::new(0.6, 0.0, 0.0, 0.2, 0.1, 0.0);
+        let b = Affine2::new(0.5, 0.0, 0.0, 0.5, 0.0, 0.0);
+        let scale = 2.0 * (0.36 + 0.04 + 0.01) + 0.5;
+        let paper = Regulariser::default().value(&[a, a, b]).unwrap();
+        assert!(
+            (paper - (1e-2 * scale + 1e-1 * 2.0 / 9.0)).abs() < 1e-14,
+            "{paper}"
+        );
+        let reference = Regulariser {
+            condition: ConditionTerm::Reference,
+            ..Regulariser::default()
+        }
+        .value(&[a, a, b])
+        .unwrap();
+        let r2 = (1.6f64 / 1.2).powi(2);
+        assert!((reference - (1e-2 * scale + 1e-1 * (2.0 * r2 + 1.0) / 3.0)).abs() < 1e-14);
     }
 
     #[test]
@@ -169,7 +227,7 @@ mod tests {
         let (v, g) = Regulariser::default()
             .value_and_grad(&[Affine2::new(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)])
             .unwrap();
-        assert!((v - 0.1).abs() < 1e-15);
+        assert_eq!(v, 0.0);
         assert!(g[0].is_finite() && g[0].m.norm() == 0.0);
     }
 

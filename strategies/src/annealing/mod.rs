@@ -35,8 +35,11 @@ pub trait Anneal {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct AnnealingConfig {
-    /// Proposal standard deviation at t = 0 (on raw θ), decaying linearly to 0.
+    /// Proposal scale at t = 0 (on raw θ), decaying linearly to 0: the standard deviation,
+    /// or the variance with `proposal = "variance"`.
     pub noise: f64,
+    /// How `noise` scales the Gaussian proposal (see [`ProposalScale`]).
+    pub proposal: ProposalScale,
     /// Scale of ΔMSE in the acceptance probability `exp(−scale·ΔMSE/τ)`.
     pub accept_scale: f64,
     /// Proposals per iteration.
@@ -46,10 +49,35 @@ pub struct AnnealingConfig {
     pub temperature: f64,
 }
 
+/// The paper writes the proposal as `Δθ ~ N(0, τ/s)`, which in the usual `N(μ, σ²)` notation
+/// is a variance; the authors' reference code draws `noise·(1 − t/T)·N(0, 1)`, a standard
+/// deviation. Both readings are here; the reference code's is the default
+/// (`paper_repro/chaotic_splatting/README.md` compares them).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ProposalScale {
+    /// Standard deviation `noise·(1 − t/T)` (the reference code).
+    #[default]
+    Std,
+    /// Variance `noise·(1 − t/T)`: standard deviation `√(noise·(1 − t/T))`.
+    Variance,
+}
+
+impl ProposalScale {
+    /// The proposal's standard deviation for a scale `v` (`noise·(1 − t/T)`).
+    pub fn std(self, v: f64) -> f64 {
+        match self {
+            ProposalScale::Std => v,
+            ProposalScale::Variance => v.max(0.0).sqrt(),
+        }
+    }
+}
+
 impl Default for AnnealingConfig {
     fn default() -> Self {
         AnnealingConfig {
             noise: 0.2,
+            proposal: ProposalScale::Std,
             accept_scale: 10.0,
             candidates: 1,
             temperature: 1.0,
@@ -107,7 +135,7 @@ pub fn metropolis_phase<O: Anneal + Differentiable>(
 ) -> Result<PhaseStats, ArgminError> {
     let progress = (1.0 - frac).max(0.0);
     let tau = cfg.temperature * progress;
-    let std = cfg.noise * progress;
+    let std = cfg.proposal.std(cfg.noise * progress);
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(ifslab::chaos::mix_seed(seed, stream));
     let mut cost = problem.problem("anneal_cost", |p| {
         p.anneal_cost(theta, stream, frac).map_err(to_argmin)

@@ -48,6 +48,26 @@ impl Default for HybridConfig {
 }
 
 impl HybridConfig {
+    /// The hybrid for a start that already lies in the right basin (an EM fit): *cold*
+    /// annealing phases (τ₀ = 0.02, noise 0.05) explore near it instead of throwing it away,
+    /// and Adam's learning rate decays to 0.1× for the final refinement. The paper's defaults
+    /// (τ₀ = 1, noise 0.2) suit random starts, where large jumps are the point.
+    pub fn from_good_start() -> Self {
+        let paper = HybridConfig::default();
+        HybridConfig {
+            annealing: AnnealingConfig {
+                temperature: 0.02,
+                noise: 0.05,
+                ..paper.annealing
+            },
+            adam: AdamConfig {
+                final_lr_factor: 0.1,
+                ..paper.adam
+            },
+            ..paper
+        }
+    }
+
     /// Checks every field; the error names the one to change.
     pub fn validate(&self) -> Result<()> {
         self.adam.validate()?;
@@ -93,11 +113,19 @@ impl Hybrid {
         })
     }
 
-    /// Whether iteration `t` starts with an annealing phase.
+    /// Whether iteration `t` starts with an annealing phase: after every `anneal_every`
+    /// gradient iterations, up to and including the end of the first `anneal_fraction` of the
+    /// run — the paper's 15 000 iterations with phases every 250 during the first half give
+    /// 30 phases (t = 250, 500, …, 7 500).
     pub fn anneals_at(&self, t: u64) -> bool {
         t > 0
             && t.is_multiple_of(self.config.anneal_every)
-            && (t as f64) < self.config.anneal_fraction * self.max_iters as f64
+            && (t as f64) <= self.config.anneal_fraction * self.max_iters as f64
+    }
+
+    /// How many annealing phases a whole run has.
+    pub fn phase_count(&self) -> u64 {
+        (1..self.max_iters).filter(|&t| self.anneals_at(t)).count() as u64
     }
 }
 
@@ -140,5 +168,30 @@ impl<O: Anneal + Differentiable> Solver<O, GradState> for Hybrid {
             kv.insert("anneal_mse", KvValue::Float(st.cost));
         }
         Ok((state, Some(kv)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn hybrid(every: u64, iters: u64) -> Hybrid {
+        let cfg = HybridConfig {
+            anneal_every: every,
+            ..HybridConfig::default()
+        };
+        Hybrid::new(cfg, iters, 0).unwrap()
+    }
+
+    #[test]
+    fn phases_fall_every_interval_through_the_first_half() {
+        // The paper: 15 000 iterations, every 250, first half → 30 phases, the last at 7 500.
+        let paper = hybrid(250, 15_000);
+        assert_eq!(paper.phase_count(), 30);
+        assert!(paper.anneals_at(7_500) && !paper.anneals_at(7_750) && !paper.anneals_at(0));
+        // The reproduction's 800 iterations every 100: t = 100, 200, 300, 400.
+        let ours = hybrid(100, 800);
+        assert_eq!(ours.phase_count(), 4);
+        assert!(ours.anneals_at(400) && !ours.anneals_at(500));
     }
 }
