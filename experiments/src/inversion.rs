@@ -5,11 +5,16 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
-use ifslab::metrics::{ImageMetrics, paper_metrics};
+use ifslab::loss::lpips::LPIPS_MIN_SIDE;
+use ifslab::loss::{Lpips, default_lpips_weights_path};
+use ifslab::metrics::{EVAL_BORDER_FRACTION, ImageMetrics, border_crop_rect, paper_metrics};
 use ifslab::model::{Affine2, Framing, IfsCode};
 use ifslab::render::image_io::{BitDepth, save_grey_png};
 use ifslab::render::{RenderConfig, View, Zoom, render};
-use ifslab_strategies::image::{InversionConfig, InversionOutcome, load_target, run_inversion};
+use ifslab_strategies::image::{
+    FRAMED_TARGET_FILE, InversionConfig, InversionOutcome, ensure_new_run_dir, load_framed_target,
+    load_target, run_inversion, save_framed_target,
+};
 use plotters::prelude::*;
 use serde::Serialize;
 
@@ -20,32 +25,79 @@ use crate::progress::{ProgressObserver, bar};
 /// The resolved config inside a run folder.
 pub const CONFIG_FILE: &str = "config.toml";
 
-/// The framed target image for a config: an image file loaded and framed, or a code rendered
-/// with the evaluation renderer (coverage, 4× supersampling) framed the same way.
+/// Points per evaluation render (the chaotic-splatting paper's 50 M per view).
+pub const EVAL_POINTS: u64 = 50_000_000;
+/// Binary supersampling per side of evaluation renders (the paper's 8×8).
+pub const EVAL_SUPERSAMPLE: u32 = 8;
+
+/// The framed target image for a config: an image file loaded and framed, or a code drawn
+/// by the evaluation renderer with the differentiable renderer's supersampling (so that the
+/// target's grey levels — the covered fraction of each pixel — are on the splat's scale) and
+/// about 200 points per pixel (2 M to 50 M), framed the same way. What a run is *scored*
+/// against is [`ground_truth`].
 pub fn prepare_target(cfg: &InversionConfig) -> anyhow::Result<Vec<f32>> {
     let size = cfg.target.size;
     if let Some(path) = &cfg.target.image {
         return load_target(path, size, cfg.target.polarity)
             .with_context(|| format!("preparing the target {}", path.display()));
     }
+    let (maps, probs) = target_code(cfg)?;
+    let points = (200 * (size * size) as u64).clamp(2_000_000, EVAL_POINTS);
+    let rc = RenderConfig {
+        points,
+        supersample: cfg.renderer.supersample as u32,
+        ..eval_config(size, cfg.seed)
+    };
+    Ok(render(&maps, &probs, &rc, None)?.values)
+}
+
+/// The maps and evaluation probabilities of a config's target code.
+fn target_code(cfg: &InversionConfig) -> anyhow::Result<(Vec<Affine2>, Vec<f64>)> {
     let spec = cfg
         .target
         .code
         .as_deref()
-        .expect("validated: image or code");
+        .context("the target is an image, not a code")?;
     let code = resolve_code(spec)?;
     let maps = code.affine2().context("the target code must be 2-D")?;
     let probs = code.evaluation_probabilities()?;
-    let r = render(&maps, &probs, &eval_config(size, 2_000_000, cfg.seed), None)?;
-    Ok(r.values)
+    Ok((maps, probs))
 }
 
-fn eval_config(size: usize, points: u64, seed: u64) -> RenderConfig {
+/// What a run is scored against: for a code target, its render at the paper's evaluation
+/// setting ([`EVAL_POINTS`] points, [`EVAL_SUPERSAMPLE`]² binary supersampling); for an image,
+/// the framed image itself.
+pub fn ground_truth(cfg: &InversionConfig, target: &[f32]) -> anyhow::Result<Vec<f32>> {
+    if cfg.target.image.is_some() {
+        return Ok(target.to_vec());
+    }
+    let (maps, probs) = target_code(cfg)?;
+    Ok(render(&maps, &probs, &eval_config(cfg.target.size, cfg.seed), None)?.values)
+}
+
+/// The target a run in `dir` optimises against: the framed copy the run stored when it
+/// started (exactly the same values, whatever the working directory and whether the original
+/// file still exists); for run folders from before that copy existed, prepared again from the
+/// config.
+pub fn run_target(cfg: &InversionConfig, dir: &Path) -> anyhow::Result<Vec<f32>> {
+    let stored = dir.join(FRAMED_TARGET_FILE);
+    if stored.is_file() {
+        return Ok(load_framed_target(&stored, cfg.target.size)?);
+    }
+    prepare_target(cfg).with_context(|| {
+        format!(
+            "{} has no stored target ({FRAMED_TARGET_FILE}), so it was prepared again from the config",
+            dir.display()
+        )
+    })
+}
+
+fn eval_config(size: usize, seed: u64) -> RenderConfig {
     RenderConfig {
         width: size as u32,
         height: size as u32,
-        points,
-        supersample: 4,
+        points: EVAL_POINTS,
+        supersample: EVAL_SUPERSAMPLE,
         seed,
         ..RenderConfig::default()
     }
@@ -64,22 +116,49 @@ pub struct Summary {
     pub final_loss: f64,
     /// IoU of the `> 0` masks (12.5% border cropped).
     pub iou: f64,
+    /// F1 (Dice) of the `> 0` masks (12.5% border cropped).
+    pub f1: f64,
     /// PSNR on the foreground pixels.
     pub psnr: f64,
     /// SSIM on the foreground pixels.
     pub ssim: f64,
-    /// Why LPIPS was not used, if it was not.
+    /// LPIPS (AlexNet) of the cropped render against the cropped target; absent without
+    /// weights or below 31 pixels a side (`lpips_metric_note` says which).
+    pub lpips: Option<f64>,
+    /// Why the LPIPS metric is absent, if it is.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lpips_metric_note: Option<String>,
+    /// Why LPIPS was not used in the loss, if it was not.
     pub lpips_note: Option<String>,
+}
+
+impl Summary {
+    /// The paper's metrics in one line: IoU, F1, PSNR, SSIM and LPIPS (when measured).
+    pub fn scores(&self) -> String {
+        let lpips = self
+            .lpips
+            .map_or_else(String::new, |v| format!(", LPIPS {v:.3}"));
+        format!(
+            "IoU {:.3}, F1 {:.3}, PSNR {:.2} dB, SSIM {:.3}{lpips}",
+            self.iou, self.f1, self.psnr, self.ssim
+        )
+    }
 }
 
 /// Runs (or resumes) the inversion of `cfg` into `dir` and writes every output.
 pub fn run_and_report(cfg: &InversionConfig, dir: &Path, resume: bool) -> anyhow::Result<Summary> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    if !resume {
-        ifslab::io::write_atomic(&dir.join(CONFIG_FILE), cfg.to_toml().as_bytes())?;
-    }
-    let target = prepare_target(cfg)?;
     let size = cfg.target.size;
+    let target = if resume {
+        run_target(cfg, dir)?
+    } else {
+        ensure_new_run_dir(dir)?;
+        let target = prepare_target(cfg)?;
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        let resolved = cfg.with_absolute_paths()?;
+        ifslab::io::write_atomic(&dir.join(CONFIG_FILE), resolved.to_toml().as_bytes())?;
+        save_framed_target(&dir.join(FRAMED_TARGET_FILE), &target, size)?;
+        target
+    };
     save_grey_png(
         &dir.join("target.png"),
         &target,
@@ -104,15 +183,18 @@ pub fn run_and_report(cfg: &InversionConfig, dir: &Path, resume: bool) -> anyhow
         resume,
         vec![Box::new(ProgressObserver::new(pb))],
     )?;
-    let metrics = write_outputs(cfg, dir, &outcome, &target)?;
+    let (metrics, lpips_metric_note) = write_outputs(cfg, dir, &outcome, &target)?;
     let summary = Summary {
         strategy: cfg.strategy.name().into(),
         iterations: outcome.iterations,
         seconds: started.elapsed().as_secs_f64(),
         final_loss: outcome.final_loss,
         iou: metrics.iou,
+        f1: metrics.f1,
         psnr: metrics.psnr,
         ssim: metrics.ssim,
+        lpips: metrics.lpips,
+        lpips_metric_note,
         lpips_note: outcome.lpips_note.clone(),
     };
     ifslab::io::write_atomic(
@@ -122,23 +204,19 @@ pub fn run_and_report(cfg: &InversionConfig, dir: &Path, resume: bool) -> anyhow
     Ok(summary)
 }
 
-/// Code file, final render, zoom strip, loss plot; returns the render's metrics.
+/// Code file, final render, zoom strip, loss plot; returns the render's metrics and, when
+/// LPIPS is not among them, why.
 fn write_outputs(
     cfg: &InversionConfig,
     dir: &Path,
     out: &InversionOutcome,
     target: &[f32],
-) -> anyhow::Result<ImageMetrics> {
+) -> anyhow::Result<(ImageMetrics, Option<String>)> {
     let size = cfg.target.size;
     let mut code = IfsCode::from_affine2(Some("recovered"), &out.maps)
         .context("the recovered code failed validation")?;
     let probs = code.evaluation_probabilities()?;
-    let final_render = render(
-        &out.maps,
-        &probs,
-        &eval_config(size, 4_000_000, cfg.seed),
-        None,
-    )?;
+    let final_render = render(&out.maps, &probs, &eval_config(size, cfg.seed), None)?;
     code.framing = Some(final_render.stats.window);
     code.meta
         .insert("strategy".into(), cfg.strategy.name().into());
@@ -147,7 +225,19 @@ fn write_outputs(
     code.meta.insert("seed".into(), cfg.seed.into());
     code.save(dir.join("code.json"))?;
     final_render.save_png(&dir.join("render.png"), BitDepth::Eight, false)?;
-    let metrics = paper_metrics::<f32>(&final_render.values, target, size, size, None)?;
+    let truth = ground_truth(cfg, target)?;
+    if cfg.target.code.is_some() {
+        save_grey_png(
+            &dir.join("truth.png"),
+            &truth,
+            size as u32,
+            size as u32,
+            BitDepth::Eight,
+            false,
+        )?;
+    }
+    let (net, lpips_metric_note) = lpips_for_metrics(size)?;
+    let metrics = paper_metrics::<f32>(&final_render.values, &truth, size, size, net.as_ref())?;
     zoom_strip(
         &out.maps,
         &probs,
@@ -156,7 +246,31 @@ fn write_outputs(
         cfg.seed,
     )?;
     loss_plot(&out.log, &dir.join("loss.png"))?;
-    Ok(metrics)
+    Ok((metrics, lpips_metric_note))
+}
+
+/// The LPIPS network for scoring `size²` renders, or why there is none.
+fn lpips_for_metrics(size: usize) -> anyhow::Result<(Option<Lpips>, Option<String>)> {
+    let rect = border_crop_rect(size, size, EVAL_BORDER_FRACTION)?;
+    if rect.2.min(rect.3) < LPIPS_MIN_SIDE {
+        return Ok((
+            None,
+            Some(format!(
+                "the {}² evaluation crop is below LPIPS's {LPIPS_MIN_SIDE}² minimum",
+                rect.2
+            )),
+        ));
+    }
+    Ok(match Lpips::try_load_default()? {
+        Some(net) => (Some(net), None),
+        None => (
+            None,
+            Some(format!(
+                "no LPIPS weights at {}",
+                default_lpips_weights_path().display()
+            )),
+        ),
+    })
 }
 
 /// A point on the attractor with detail around it: the fixed point of `f₀∘f₁`.

@@ -135,3 +135,107 @@ fn quick_inversion_writes_every_output_and_resumes() {
     let (ok, msg) = ifslab(&["invert", "--resume", &o]);
     assert!(ok, "{msg}");
 }
+
+/// Defect: `--resume` resolved a relative target path against the run folder, and with the
+/// README's names (`invert target.png … -o out/run`) silently optimised against the run
+/// folder's 8-bit `target.png`. A run killed mid-way and resumed from another working
+/// directory, after the original image is gone, must end with exactly the code of the
+/// uninterrupted run.
+#[test]
+fn resume_after_a_kill_matches_the_uninterrupted_run_from_any_directory() {
+    let tmp = tempfile::tempdir().unwrap();
+    let work = tmp.path().join("work");
+    std::fs::create_dir_all(&work).unwrap();
+    let bin = env!("CARGO_BIN_EXE_ifslab");
+    let run_in = |dir: &Path, args: &[&str]| {
+        let out = Command::new(bin)
+            .current_dir(dir)
+            .args(args)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "{args:?}: {text}");
+    };
+    // The user's image, under the name the run folder also uses.
+    run_in(
+        &work,
+        &[
+            "render",
+            "fern",
+            "-o",
+            "target.png",
+            "--size",
+            "96",
+            "--points",
+            "300000",
+        ],
+    );
+    let invert = |out: &str| -> Vec<String> {
+        [
+            "invert",
+            "target.png",
+            "--size",
+            "32",
+            "--iters",
+            "120",
+            "--trajectories",
+            "100",
+            "--length",
+            "40",
+            "--checkpoint-every",
+            "2",
+            "--maps",
+            "2",
+            "-o",
+            out,
+        ]
+        .map(String::from)
+        .to_vec()
+    };
+    run_in(
+        &work,
+        &invert("out/whole")
+            .iter()
+            .map(String::as_str)
+            .collect::<Vec<_>>(),
+    );
+
+    // The same run, killed (SIGKILL) once a checkpoint exists.
+    let mut child = Command::new(bin)
+        .current_dir(&work)
+        .args(invert("out/run"))
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let ckpt = work.join("out/run/checkpoint.json");
+    let t0 = std::time::Instant::now();
+    while !ckpt.exists() && t0.elapsed().as_secs() < 120 {
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(ckpt.exists(), "the run never wrote a checkpoint");
+    assert!(
+        !work.join("out/run/summary.json").exists(),
+        "the run finished before it was killed: nothing was resumed"
+    );
+    // The user's file is gone; the run folder still holds its own target.png.
+    std::fs::remove_file(work.join("target.png")).unwrap();
+    run_in(tmp.path(), &["invert", "--resume", "work/out/run"]);
+
+    let maps = |dir: &str| {
+        ifslab::model::IfsCode::load(work.join(dir).join("code.json"))
+            .unwrap()
+            .affine2()
+            .unwrap()
+    };
+    assert_eq!(
+        maps("out/run"),
+        maps("out/whole"),
+        "resumed ≠ uninterrupted"
+    );
+    // The run folder's config names the image absolutely, so it means the same anywhere.
+    let cfg = InversionConfig::load(&work.join("out/run/config.toml")).unwrap();
+    assert!(cfg.target.image.unwrap().is_absolute());
+}

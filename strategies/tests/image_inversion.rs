@@ -261,7 +261,11 @@ fn same_seed_same_code_with_any_thread_count() {
     let one = run(1);
     let three = run(3);
     assert_eq!(one.iterations, 12);
-    assert_eq!(one.lpips_note.is_none(), lpips, "LPIPS used iff its weights are present");
+    assert_eq!(
+        one.lpips_note.is_none(),
+        lpips,
+        "LPIPS used iff its weights are present"
+    );
     assert_eq!(one.theta, three.theta, "θ depends on the thread count");
     assert_eq!(one.final_loss.to_bits(), three.final_loss.to_bits());
 }
@@ -296,7 +300,11 @@ fn sigma_schedule_renders_with_the_scheduled_sigma() {
     assert_eq!(loss(&scheduled, 0), loss(&start, 0));
     assert_eq!(loss(&scheduled, 5), loss(&middle, 5));
     assert_eq!(loss(&scheduled, 10), loss(&end, 10));
-    assert_ne!(loss(&start, 5), loss(&middle, 5), "σ must matter to the loss");
+    assert_ne!(
+        loss(&start, 5),
+        loss(&middle, 5),
+        "σ must matter to the loss"
+    );
     let cost = |p: &ImageProblem, frac: f64| p.anneal_cost(&theta, 7, frac).unwrap();
     assert_eq!(cost(&scheduled, 0.5), cost(&middle, 0.0));
     assert_eq!(cost(&scheduled, 1.0), cost(&end, 0.3));

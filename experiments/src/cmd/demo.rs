@@ -5,8 +5,6 @@
 
 use std::path::PathBuf;
 
-use ifslab_strategies::adam::AdamConfig;
-use ifslab_strategies::annealing::AnnealingConfig;
 use ifslab_strategies::hybrid::HybridConfig;
 use ifslab_strategies::image::config::{GeneratorConfig, ModelConfig, TargetConfig};
 use ifslab_strategies::image::{InitKind, InversionConfig, StrategyConfig};
@@ -64,20 +62,10 @@ pub fn demo_config(a: &Args) -> anyhow::Result<InversionConfig> {
         },
         renderer: Default::default(),
         loss: Default::default(),
+        // Cold annealing: the EM fit is already in the right basin.
         strategy: StrategyConfig::Hybrid(HybridConfig {
             anneal_every: 100,
-            // Start cold: the EM fit is already in the right basin, so the annealing phases
-            // only explore near it (the paper's τ₀ = 1, noise 0.2 suit random starts).
-            annealing: AnnealingConfig {
-                temperature: 0.02,
-                noise: 0.05,
-                ..HybridConfig::default().annealing
-            },
-            adam: AdamConfig {
-                final_lr_factor: 0.1,
-                ..AdamConfig::default()
-            },
-            ..HybridConfig::default()
+            ..HybridConfig::from_good_start()
         }),
     };
     cfg.validate()?;
@@ -91,14 +79,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     let s = run_and_report(&cfg, &a.output, false)?;
     println!(
-        "demo: recovered `{}` ({} maps) from its {}² render in {:.1} s — IoU {:.3}, PSNR {:.2} dB, SSIM {:.3}; outputs in {}",
+        "demo: recovered `{}` ({} maps) from its {}² render in {:.1} s — {}; outputs in {}",
         a.target,
         cfg.model.maps,
         cfg.target.size,
         s.seconds,
-        s.iou,
-        s.psnr,
-        s.ssim,
+        s.scores(),
         a.output.display()
     );
     Ok(())

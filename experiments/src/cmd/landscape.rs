@@ -11,7 +11,7 @@ use ifslab_strategies::image::{
 };
 
 use crate::cmd::resolve_code;
-use crate::inversion::{CONFIG_FILE, prepare_target};
+use crate::inversion::{CONFIG_FILE, run_target};
 use crate::plot::{Heat, heatmaps};
 use crate::progress::bar;
 
@@ -82,7 +82,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             resolve_code(spec)?.affine2()?
         }
     };
-    let target = prepare_target(&cfg)?;
+    let target = run_target(&cfg, &a.run_dir)?;
     let problem = ImageProblem::from_config(&cfg, target)?;
     let theta = problem
         .parameterisation()

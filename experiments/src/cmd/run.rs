@@ -23,14 +23,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let dir = output_dir(a.output, &cfg, "out/run");
     let s = run_and_report(&cfg, &dir, a.resume)?;
     println!(
-        "{}: {} iterations of {} in {:.1} s, IoU {:.3}, PSNR {:.2} dB, SSIM {:.3}",
+        "{}: {} iterations of {} in {:.1} s, {}",
         dir.display(),
         s.iterations,
         s.strategy,
         s.seconds,
-        s.iou,
-        s.psnr,
-        s.ssim
+        s.scores()
     );
     Ok(())
 }

@@ -259,7 +259,8 @@ impl InversionConfig {
         toml::to_string_pretty(self).expect("an inversion config always serialises")
     }
 
-    /// Reads and validates a config file; relative target paths become relative to its folder.
+    /// Reads and validates a config file; relative paths of the target image and of code
+    /// files become relative to its folder.
     pub fn load(path: &Path) -> Result<Self> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
         let mut cfg = InversionConfig::from_toml(&text, path)?;
@@ -269,11 +270,41 @@ impl InversionConfig {
         {
             cfg.target.image = Some(dir.join(img));
         }
-        if let Some(code) = &cfg.target.code
-            && let Some(dir) = path.parent()
-            && dir.join(code).is_file()
-        {
-            cfg.target.code = Some(dir.join(code).to_string_lossy().into_owned());
+        if let Some(dir) = path.parent() {
+            for spec in [&mut cfg.target.code, &mut cfg.model.init_code]
+                .into_iter()
+                .flatten()
+            {
+                if dir.join(&*spec).is_file() {
+                    *spec = dir.join(&*spec).to_string_lossy().into_owned();
+                }
+            }
+        }
+        Ok(cfg)
+    }
+
+    /// The same config with every file it names made absolute (against the working
+    /// directory): what a run folder's `config.toml` holds, so that the run means the same
+    /// thing read from any folder (`--resume`, `ifslab run DIR/config.toml`). Built-in code
+    /// names are left as they are.
+    pub fn with_absolute_paths(&self) -> Result<Self> {
+        let abs = |p: &Path| std::path::absolute(p).map_err(|e| Error::file(p, e));
+        let file_spec = |spec: &String| -> Result<String> {
+            let p = Path::new(spec);
+            Ok(if p.is_file() {
+                abs(p)?.to_string_lossy().into_owned()
+            } else {
+                spec.clone()
+            })
+        };
+        let mut cfg = self.clone();
+        if let Some(img) = &self.target.image {
+            cfg.target.image = Some(abs(img)?);
+        }
+        cfg.target.code = self.target.code.as_ref().map(file_spec).transpose()?;
+        cfg.model.init_code = self.model.init_code.as_ref().map(file_spec).transpose()?;
+        if let Some(out) = &self.output {
+            cfg.output = Some(abs(out)?);
         }
         Ok(cfg)
     }

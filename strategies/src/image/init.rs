@@ -24,10 +24,10 @@ use crate::image::config::InversionConfig;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum InitKind {
-    /// An Anderson–Farrell random code.
-    #[default]
+    /// An Anderson–Farrell random code (the paper's start).
     Random,
-    /// EM on points sampled from the target image.
+    /// EM on points sampled from the target image (the reliable start).
+    #[default]
     Em,
 }
 

@@ -22,5 +22,7 @@ pub use config::{InversionConfig, StrategyConfig, TargetConfig};
 pub use init::{InitKind, initial_theta};
 pub use landscape::{Directions, Landscape, LandscapeConfig, landscape};
 pub use problem::ImageProblem;
-pub use run::{InversionOutcome, run_inversion};
-pub use target::{Polarity, frame_target, load_target};
+pub use run::{InversionOutcome, ensure_new_run_dir, run_inversion};
+pub use target::{
+    FRAMED_TARGET_FILE, Polarity, frame_target, load_framed_target, load_target, save_framed_target,
+};

@@ -63,6 +63,19 @@ impl Observe<GradState> for Boxed {
     }
 }
 
+/// Refuses `dir` for a fresh run if it already holds one (its checkpoint), so that nothing of
+/// that run — its config, its target — is overwritten before the refusal.
+pub fn ensure_new_run_dir(dir: &Path) -> Result<()> {
+    if dir.join(CHECKPOINT_FILE).exists() {
+        return Err(Error::InvalidInput(format!(
+            "{} already holds a run (checkpoint.json); continue it with --resume {} or choose another output folder",
+            dir.display(),
+            dir.display()
+        )));
+    }
+    Ok(())
+}
+
 /// Runs the inversion described by `cfg` against `target` (framed, `size × size`), writing
 /// `checkpoint.json` and `log.csv` into `dir`. With `resume`, continues from the checkpoint
 /// there; the result is bit-identical to an uninterrupted run. `observers` see every
@@ -77,12 +90,8 @@ pub fn run_inversion(
     cfg.validate()?;
     std::fs::create_dir_all(dir).map_err(|e| Error::file(dir, e))?;
     let ckpt_path = dir.join(CHECKPOINT_FILE);
-    if !resume && ckpt_path.exists() {
-        return Err(Error::InvalidInput(format!(
-            "{} already holds a run (checkpoint.json); continue it with --resume {} or choose another output folder",
-            dir.display(),
-            dir.display()
-        )));
+    if !resume {
+        ensure_new_run_dir(dir)?;
     }
     let resume_from = if resume {
         let bytes = std::fs::read(&ckpt_path)
@@ -97,7 +106,12 @@ pub fn run_inversion(
     } else {
         None
     };
-    let theta0 = initial_theta(cfg, cfg.model.parameterisation.build().as_ref(), &target)?;
+    // A resumed run takes θ from its checkpoint; the start (an EM fit, say) is not redone.
+    let theta0 = if resume_from.is_some() {
+        Vec::new()
+    } else {
+        initial_theta(cfg, cfg.model.parameterisation.build().as_ref(), &target)?
+    };
     let problem = ImageProblem::from_config(cfg, target)?;
     let lpips_note = problem.lpips_skip_reason().map(str::to_owned);
     let log = CsvLog::open(dir.join(LOG_FILE), &TERMS, resume_from)?;

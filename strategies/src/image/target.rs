@@ -9,7 +9,14 @@ use ifslab::render::image_io::{GreyImage, load_grey};
 use image::{ImageBuffer, Luma, imageops};
 use serde::{Deserialize, Serialize};
 
+use crate::em::PointSet;
 use crate::error::{Error, Result};
+
+/// The framed target inside a run folder, stored losslessly (a NumPy `float64` array of
+/// `size` rows × `size` columns) so that a resumed run optimises against exactly the image the
+/// interrupted one did, whatever the working directory and whether the original file still
+/// exists (`target.png` beside it is an 8-bit picture for people).
+pub const FRAMED_TARGET_FILE: &str = "target.npy";
 
 /// Which way round the target's shape is drawn.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -116,6 +123,34 @@ pub fn frame_target(img: &GreyImage, size: usize, polarity: Polarity) -> Result<
     Ok(out)
 }
 
+/// Writes a framed `size × size` target atomically as a lossless `.npy` array.
+pub fn save_framed_target(path: &Path, target: &[f32], size: usize) -> Result<()> {
+    if target.len() != size * size {
+        return Err(Error::param(
+            "target",
+            format!("{} values do not make a {size}×{size} image", target.len()),
+        ));
+    }
+    PointSet::new(size, target.iter().map(|&v| v as f64).collect())?.save(path)
+}
+
+/// Reads a target written by [`save_framed_target`]; it must be `size × size`.
+pub fn load_framed_target(path: &Path, size: usize) -> Result<Vec<f32>> {
+    let rows = PointSet::load(path)?;
+    if rows.dim() != size || rows.len() != size {
+        return Err(Error::file(
+            path,
+            format!(
+                "holds a {}×{} target where the run's config says {size}×{size}",
+                rows.len(),
+                rows.dim()
+            ),
+        ));
+    }
+    // f32 → f64 → f32 is exact, so the values are the ones that were saved.
+    Ok(rows.as_slice().iter().map(|&v| v as f32).collect())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -155,6 +190,21 @@ mod tests {
             (x0 + x1).abs_diff(63) <= 1 && (y0 + y1).abs_diff(63) <= 1,
             "not centred"
         );
+    }
+
+    #[test]
+    fn framed_targets_round_trip_bit_exactly() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join(FRAMED_TARGET_FILE);
+        let t: Vec<f32> = (0..16 * 16)
+            .map(|i| (i as f32 * 0.37).sin().abs() / 3.0)
+            .collect();
+        save_framed_target(&path, &t, 16).unwrap();
+        let back = load_framed_target(&path, 16).unwrap();
+        assert!(t.iter().zip(&back).all(|(a, b)| a.to_bits() == b.to_bits()));
+        let e = load_framed_target(&path, 32).unwrap_err().to_string();
+        assert!(e.contains("16×16") && e.contains("32×32"), "{e}");
+        assert!(save_framed_target(&path, &t, 15).is_err());
     }
 
     #[test]
