@@ -109,39 +109,60 @@ fn adam_on_the_naive_parameterisation_recovers_a_perturbed_code() {
     );
 }
 
-/// The hybrid (EM start, cold annealing phases) recovers the Sierpiński triangle from its
-/// 64² render in 300 iterations for every seed tried. A perfect recovery scores IoU ≈ 1 on
-/// these masks; a wrong attractor framed the same way scores 0.1–0.35 (random starts).
-#[test]
-fn hybrid_recovers_the_sierpinski_triangle_across_seeds() {
-    use ifslab_strategies::annealing::AnnealingConfig;
+/// IoU of the EM start and of the hybrid run from it (cold annealing phases every 50
+/// iterations, coarse-to-fine σ 1 → 0.4), for `maps` maps against `code`'s 64² render.
+fn em_then_hybrid(code: &str, maps: usize, seed: u64, iterations: u64) -> (f64, f64) {
     use ifslab_strategies::hybrid::HybridConfig;
     use ifslab_strategies::image::InitKind;
     let size = 64;
-    let t = target("sierpinski", size);
+    let t = target(code, size);
+    let mut cfg = base_config(
+        size,
+        iterations,
+        StrategyConfig::Hybrid(HybridConfig {
+            anneal_every: 50,
+            ..HybridConfig::from_good_start()
+        }),
+    );
+    cfg.seed = seed;
+    cfg.target.code = Some(code.into());
+    cfg.model.maps = maps;
+    cfg.model.init = InitKind::Em;
+    cfg.renderer.sigma_final = Some(0.4);
+    let param = cfg.model.parameterisation.build();
+    let start = ifslab_strategies::image::initial_theta(&cfg, param.as_ref(), &t).unwrap();
+    let em_only = iou_of(&param.decode(&start).unwrap(), &t, size);
+    let dir = tempfile::tempdir().unwrap();
+    let out = run_inversion(&cfg, t.clone(), dir.path(), false, vec![]).unwrap();
+    let iou = iou_of(&out.maps, &t, size);
+    eprintln!("{code}, seed {seed}: IoU of the EM start {em_only:.3}, after the hybrid {iou:.3}");
+    (em_only, iou)
+}
+
+/// The hybrid recovers the Sierpiński triangle from its 64² render in 300 iterations for
+/// every seed tried (a perfect recovery scores IoU ≈ 1 on these masks; a wrong attractor
+/// framed the same way scores 0.1–0.35), never worse than the EM fit it starts from.
+#[test]
+fn hybrid_recovers_the_sierpinski_triangle_across_seeds() {
     for seed in [0, 1, 2] {
-        let mut cfg = base_config(
-            size,
-            300,
-            StrategyConfig::Hybrid(HybridConfig {
-                anneal_every: 50,
-                annealing: AnnealingConfig {
-                    temperature: 0.02,
-                    noise: 0.05,
-                    candidates: 5,
-                    ..AnnealingConfig::default()
-                },
-                ..HybridConfig::default()
-            }),
+        let (em_only, iou) = em_then_hybrid("sierpinski", 3, seed, 300);
+        assert!(
+            iou > 0.95 && iou >= em_only,
+            "seed {seed}: IoU {iou:.3} from an EM start at {em_only:.3}"
         );
-        cfg.seed = seed;
-        cfg.model.init = InitKind::Em;
-        let dir = tempfile::tempdir().unwrap();
-        let out = run_inversion(&cfg, t.clone(), dir.path(), false, vec![]).unwrap();
-        let iou = iou_of(&out.maps, &t, size);
-        eprintln!("seed {seed}: IoU {iou:.3}");
-        assert!(iou > 0.65, "seed {seed}: IoU {iou:.3}");
     }
+}
+
+/// The fern's maps are not similitudes, so the EM start (similitudes) cannot draw it
+/// exactly: the gradient part must do real work. It beats the EM-only baseline clearly
+/// (measured: 0.80 → 0.86).
+#[test]
+fn hybrid_beats_its_em_start_on_the_fern() {
+    let (em_only, iou) = em_then_hybrid("fern", 4, 0, 300);
+    assert!(
+        iou > em_only + 0.03 && iou > 0.83,
+        "IoU {iou:.3} from an EM start at {em_only:.3}"
+    );
 }
 
 /// A run stopped after a checkpoint and resumed ends with bit-identical parameters to a run

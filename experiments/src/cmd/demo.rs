@@ -6,7 +6,9 @@
 use std::path::PathBuf;
 
 use ifslab_strategies::hybrid::HybridConfig;
-use ifslab_strategies::image::config::{GeneratorConfig, ModelConfig, TargetConfig};
+use ifslab_strategies::image::config::{
+    GeneratorConfig, ModelConfig, RendererConfig, TargetConfig,
+};
 use ifslab_strategies::image::{InitKind, InversionConfig, StrategyConfig};
 
 use crate::inversion::run_and_report;
@@ -28,8 +30,8 @@ pub struct Args {
 }
 
 /// The demo's configuration: a 96² target, maps as in the target code, 1000 × 110
-/// trajectories per iteration, EM initialisation, the hybrid with a cold annealing phase
-/// every 100 iterations during the first half.
+/// trajectories per iteration, EM initialisation, a coarse-to-fine splat, the hybrid with a
+/// cold annealing phase every 100 iterations during the first half.
 pub fn demo_config(a: &Args) -> anyhow::Result<InversionConfig> {
     let code = ifslab::model::library::builtin(&a.target)?;
     if code.dim() != 2 {
@@ -60,7 +62,13 @@ pub fn demo_config(a: &Args) -> anyhow::Result<InversionConfig> {
             length: 110,
             ..GeneratorConfig::default()
         },
-        renderer: Default::default(),
+        // Coarse-to-fine splat (σ 1 → 0.4 supersampled pixels): a fixed σ = 1 draws thin
+        // structures thick and the loss prefers slightly shrunken maps (IoU ≈ 0.74 on
+        // Sierpiński); ending thin removes that bias (paper_repro/chaotic_splatting/README.md).
+        renderer: RendererConfig {
+            sigma_final: Some(0.4),
+            ..RendererConfig::default()
+        },
         loss: Default::default(),
         // Cold annealing: the EM fit is already in the right basin.
         strategy: StrategyConfig::Hybrid(HybridConfig {
@@ -78,8 +86,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         std::fs::remove_file(a.output.join("checkpoint.json"))?;
     }
     let s = run_and_report(&cfg, &a.output, false)?;
+    // The verdict follows the score against the code's ground truth, not the hope.
+    let verdict = match s.iou {
+        v if v >= 0.9 => "recovered",
+        v if v >= 0.6 => "approximately recovered",
+        _ => "did not recover",
+    };
     println!(
-        "demo: recovered `{}` ({} maps) from its {}² render in {:.1} s — {}; outputs in {}",
+        "demo: {verdict} `{}` ({} maps) from its {}² render in {:.1} s — {}; outputs in {}",
         a.target,
         cfg.model.maps,
         cfg.target.size,
