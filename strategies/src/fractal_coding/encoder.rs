@@ -1,26 +1,40 @@
 //! The encoder: template matching of every 2×2 range block of the source against the 2×2
-//! blocks of the reduced texture R inside a ±`window` search window.
+//! blocks of the reduced texture R in a search set around the domain texel.
 //!
-//! For a texel c of R with range block r (the source's 2×2 block at 2c, per channel), the
-//! error of a candidate block d of R with the best offset is the sum of squared errors of the
-//! mean-removed blocks, E = ‖r̃‖² + ‖d̃‖² − 2 r̃·d̃, and the offset is O = r̄ − d̄. The search
-//! minimises the score E + β·(|Δx| + |Δy|) (Δ = candidate − c; β = 0 is plain fractal coding)
-//! and keeps up to `max_candidates` candidates whose score is within `delta_e_max` of the
-//! best, for the refinement.
+//! For a texel c of R with range block r (the source's 2×2 block at 2c, per channel) and a
+//! candidate block d of R (top-left texel (x, y)), the matching error is one of
+//! - [`Matching::Raw`], the paper's Eq. 3: E = ‖r − d‖², the offset computed afterwards;
+//! - [`Matching::MeanRemoved`]: E = ‖r̃ − d̃‖², the SSE left after the best constant offset
+//!   (r̃, d̃ the mean-removed blocks).
+//!
+//! Either way the offset is O = r̄ − d̄ (Eq. 4). The search minimises the score
+//! E + β·(|x − x₀| + |y − y₀|), where (x₀, y₀) is c ([`DistanceCentre::Domain`]) or 2c
+//! ([`DistanceCentre::Range`], Eq. 12 as printed); β = 0 is the plain encoder of Eq. 2. The
+//! search set ([`SearchGrid`]) is every block within ±`window` texels of c, or only the blocks
+//! at even indices (the paper's §IV), whose coordinates the packed format stores as half the
+//! relative coordinate in [−125, 126]. The encoder keeps, for the refinement, the candidate set
+//! Ω = {score < best + ΔE_max} (Eq. 13; the best always), best first, optionally capped.
+//! Ties are broken by the distance term's Manhattan distance, then by the position in R.
 //!
 //! ## Speed
-//! - ‖d̃‖² and three mean-removed values per channel are precomputed per candidate position in
-//!   structure-of-arrays planes (d̃₃ = −d̃₀ − d̃₁ − d̃₂, so three planes carry a channel);
-//!   scoring a candidate is then 3 multiply–adds per channel.
-//! - Texels are searched in tiles of four neighbours of a row: the tile shares one pass over
-//!   the candidate planes (one load, four dot products), in chunks of eight lanes that the
-//!   compiler vectorises (AVX2 when the CPU has it, selected at run time; the arithmetic is
-//!   the same on every path, so the result does not depend on the CPU).
+//! - The candidate blocks of each lattice of positions the grids use are precomputed in
+//!   structure-of-arrays planes: the four raw values per channel and ‖d‖² (raw), or three
+//!   mean-removed values per channel (d̃₃ = −d̃₀ − d̃₁ − d̃₂) and ‖d̃‖² (mean-removed). Scoring a
+//!   candidate is then ‖d‖² − 2 w·d: 3 or 4 multiply–adds per channel.
+//! - Texels are searched in tiles of four texels of a row that share a lattice: the tile shares
+//!   one pass over the candidate planes (one load, four dot products), in chunks of eight lanes
+//!   that the compiler vectorises (AVX2 when the CPU has it, selected at run time; the
+//!   arithmetic is the same on every path, so the result does not depend on the CPU).
 //! - A row of candidate scores is reduced to its minimum first; only rows whose minimum can
-//!   enter the candidate list are scanned (exact: no candidate is skipped that could qualify).
+//!   enter the candidate set are scanned (exact: no candidate is skipped that could qualify).
 //! - Rows of texels run in parallel with rayon; each texel's result depends only on its own
 //!   search, so the code does not depend on the thread count.
+//!
+//! For 8-bit sources every quantity of the raw matching is an integer below 2²⁴, so its scores
+//! are exact in `f32` and the encoder equals a brute-force search bit for bit (tested).
 
+use std::cmp::Ordering;
+use std::sync::atomic::{AtomicU64, Ordering as AtomicOrdering};
 use std::time::Instant;
 
 use rayon::prelude::*;
@@ -30,29 +44,180 @@ use crate::error::{Error, Result};
 use crate::fractal_coding::code::FractalCode;
 use crate::fractal_coding::texture::Texture;
 
-/// Encoder settings. The defaults are plain fractal coding in the paper's ±255 window.
+/// Most candidates the encoder keeps in all (about 1 GB for grey textures, 2 GB for RGB):
+/// beyond this it refuses, rather than exhausting memory on a large uncapped Ω.
+pub const MAX_TOTAL_CANDIDATES: u64 = 1 << 26;
+
+/// Smallest half relative coordinate the even grids (and the paper's packed format) allow.
+pub const HALF_MIN: i32 = -125;
+/// Largest half relative coordinate the even grids (and the paper's packed format) allow.
+pub const HALF_MAX: i32 = 126;
+
+/// Implements `name`, `ALL`, `Display` and `FromStr` for a settings enum.
+macro_rules! named_enum {
+    ($ty:ident, $param:literal, $($variant:ident => $name:literal),+ $(,)?) => {
+        impl $ty {
+            /// Every value, in the order of the documentation.
+            pub const ALL: &'static [$ty] = &[$($ty::$variant),+];
+
+            /// The name used on the command line, in configs and in tables.
+            pub fn name(self) -> &'static str {
+                match self {
+                    $($ty::$variant => $name),+
+                }
+            }
+        }
+
+        impl ::std::fmt::Display for $ty {
+            fn fmt(&self, f: &mut ::std::fmt::Formatter<'_>) -> ::std::fmt::Result {
+                f.write_str(self.name())
+            }
+        }
+
+        impl ::std::str::FromStr for $ty {
+            type Err = $crate::error::Error;
+
+            fn from_str(s: &str) -> $crate::error::Result<Self> {
+                $ty::ALL.iter().copied().find(|v| v.name() == s).ok_or_else(|| {
+                    let names: Vec<&str> = $ty::ALL.iter().map(|v| v.name()).collect();
+                    $crate::error::Error::param(
+                        $param,
+                        format!("unknown value `{s}`; use one of {}", names.join(", ")),
+                    )
+                })
+            }
+        }
+    };
+}
+pub(crate) use named_enum;
+
+/// How a candidate block is compared with the range block.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Matching {
+    /// The paper's Eq. 3: the raw SSE ‖r − d‖²; the offset is computed afterwards (Eq. 4), so
+    /// the match must already have about the right brightness.
+    Raw,
+    /// The SSE after removing the best constant offset, ‖r̃ − d̃‖²: any brightness matches.
+    MeanRemoved,
+}
+named_enum!(Matching, "matching", Raw => "raw", MeanRemoved => "mean-removed");
+
+/// Which blocks of R are candidates for a texel c.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SearchGrid {
+    /// Every block whose top-left texel is within ±`window` of c.
+    All,
+    /// The paper's §IV: blocks at even indices (x and y even), with half the relative
+    /// coordinate, x/2 − ⌊c_x/2⌋, in [−125, 126] (and within ±`window` of c).
+    Even,
+    /// The other reading of §IV: blocks at an even offset from c (x − c_x even), with
+    /// (x − c_x)/2 in [−125, 126] (and within ±`window` of c).
+    EvenOffset,
+}
+named_enum!(SearchGrid, "grid", All => "all", Even => "even", EvenOffset => "even-offset");
+
+impl SearchGrid {
+    /// Distance between neighbouring candidates along an axis.
+    pub fn stride(self) -> usize {
+        match self {
+            SearchGrid::All => 1,
+            SearchGrid::Even | SearchGrid::EvenOffset => 2,
+        }
+    }
+
+    /// The base b(c) of the half relative coordinate s = (x − b(c)) / 2 along one axis:
+    /// 2⌊c/2⌋ for [`SearchGrid::Even`], c for [`SearchGrid::EvenOffset`]; `None` for
+    /// [`SearchGrid::All`], whose offsets need not be even.
+    pub fn half_base(self, c: usize) -> Option<usize> {
+        match self {
+            SearchGrid::All => None,
+            SearchGrid::Even => Some(c & !1),
+            SearchGrid::EvenOffset => Some(c),
+        }
+    }
+
+    /// The parity class (x mod 2, y mod 2) of texel c's candidates, for the even grids.
+    fn class(self, cx: usize, cy: usize) -> (usize, usize) {
+        match self {
+            SearchGrid::All | SearchGrid::Even => (0, 0),
+            SearchGrid::EvenOffset => (cx & 1, cy & 1),
+        }
+    }
+}
+
+/// How the reduced texture R is made from the source.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Reduction {
+    /// The 2×2 box filter (the first mipmap level): R(c) is the mean of the range block at 2c.
+    Box,
+    /// OpenCV's `pyrDown` (5×5 binomial filter), for comparison: R(c) then also depends on the
+    /// range block's neighbours.
+    Binomial,
+}
+named_enum!(Reduction, "reduction", Box => "box", Binomial => "binomial");
+
+/// The point the proximity term β·(|x − x₀| + |y − y₀|) measures distance from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum DistanceCentre {
+    /// The domain texel: (x₀, y₀) = c, so nearby blocks of R are preferred.
+    Domain,
+    /// The paper's Eq. 12 as printed, |x − 2c_x| + |y − 2c_y|: the range block's position in
+    /// the source, compared with a position in R.
+    Range,
+}
+named_enum!(DistanceCentre, "distance", Domain => "domain", Range => "range");
+
+impl DistanceCentre {
+    /// The multiple of c the distance is measured from.
+    pub fn scale(self) -> usize {
+        match self {
+            DistanceCentre::Domain => 1,
+            DistanceCentre::Range => 2,
+        }
+    }
+}
+
+/// Encoder settings. The defaults are the plain encoder (β = 0, one candidate) of the
+/// default preset; see [`Preset`](crate::fractal_coding::preset::Preset) for both presets.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct EncoderConfig {
-    /// Half-width of the search window in texels of R (the paper: 255, the range of the packed
-    /// 8-bit relative coordinates). Must be at least 1.
+    /// How R is made (both presets: the box filter).
+    pub reduction: Reduction,
+    /// Half-width of the search window in texels of R (the paper: 255; the sign–magnitude
+    /// packed format holds at most 255). At least 1 (2 for the even grids).
     pub window: u32,
-    /// Weight β of the spatial-proximity term β·(|Δx| + |Δy|), in squared grey levels per
-    /// texel of distance; 0 disables it.
+    /// Matching criterion.
+    pub matching: Matching,
+    /// Search set.
+    pub grid: SearchGrid,
+    /// Weight β of the proximity term, in squared grey levels per texel of distance; 0
+    /// disables it.
     pub beta: f32,
-    /// Keep the candidates whose score is within this of the best (squared grey levels).
+    /// Where the proximity term measures distance from.
+    pub distance: DistanceCentre,
+    /// ΔE_max: keep the candidates whose score is below the best's plus this (squared grey
+    /// levels); 0 keeps the best only.
     pub delta_e_max: f32,
-    /// At most this many candidates per texel (the best first); 1 keeps only the best.
-    pub max_candidates: usize,
+    /// At most this many candidates per texel (the best first); `None` keeps all of Ω.
+    pub max_candidates: Option<usize>,
 }
 
 impl Default for EncoderConfig {
     fn default() -> Self {
         EncoderConfig {
+            reduction: Reduction::Box,
             window: 255,
+            matching: Matching::MeanRemoved,
+            grid: SearchGrid::All,
             beta: 0.0,
+            distance: DistanceCentre::Domain,
             delta_e_max: 0.0,
-            max_candidates: 1,
+            max_candidates: Some(1),
         }
     }
 }
@@ -60,10 +225,14 @@ impl Default for EncoderConfig {
 impl EncoderConfig {
     /// Refuses values outside their ranges, saying what to change.
     pub fn validate(&self) -> Result<()> {
-        if self.window == 0 {
+        let min_window = if self.grid == SearchGrid::All { 1 } else { 2 };
+        if self.window < min_window {
             return Err(Error::param(
                 "window",
-                "must be at least 1 texel (the paper uses 255)",
+                format!(
+                    "must be at least {min_window} texel(s) for grid `{}`, got {} (the paper uses 255)",
+                    self.grid, self.window
+                ),
             ));
         }
         if !(self.beta.is_finite() && self.beta >= 0.0) {
@@ -78,10 +247,10 @@ impl EncoderConfig {
                 format!("must be a finite number ≥ 0, got {}", self.delta_e_max),
             ));
         }
-        if self.max_candidates == 0 || self.max_candidates > 256 {
+        if self.max_candidates == Some(0) {
             return Err(Error::param(
                 "max_candidates",
-                format!("must be between 1 and 256, got {}", self.max_candidates),
+                "must be at least 1 (or unset / `all` to keep every candidate of Ω)",
             ));
         }
         Ok(())
@@ -124,7 +293,8 @@ impl Candidates {
         self.coords.len()
     }
 
-    /// Candidate `k` of texel `c`: (block coordinate in R, offsets, SSE, score).
+    /// Candidate `k` of texel `c`: (block coordinate in R as a row-major index, offsets,
+    /// collage SSE after the offset, score E + β·distance).
     pub fn get(&self, c: usize, k: usize) -> (u32, &[f32], f32, f32) {
         let i = self.start[c] as usize + k;
         let ch = self.channels;
@@ -155,14 +325,18 @@ pub struct EncodeStats {
     pub seconds: f64,
     /// Candidate blocks scored (all texels).
     pub candidates_scored: u64,
-    /// Mean collage error of the code: SSE per range block (squared grey levels).
+    /// Mean collage error of the code: SSE per range block after the offset (squared grey
+    /// levels).
     pub mean_sse: f64,
     /// Mean number of candidates kept per texel.
     pub mean_candidates: f64,
+    /// Largest number of candidates kept for one texel.
+    pub most_candidates: usize,
 }
 
-/// Encodes a texture with even sides of at least 4 texels: R by a rounded 2×2 box filter
-/// (see [`Texture::reduce`]), then the search described in the module docs.
+/// Encodes a texture with even sides of at least 4 texels (6 for the even-offset grid): R by
+/// a rounded 2×2 box filter (see [`Texture::reduce`]; or [`Texture::reduce_binomial`]), then
+/// the search of the module docs.
 pub fn encode(source: &Texture, cfg: &EncoderConfig) -> Result<Encoding> {
     cfg.validate()?;
     let (w, h) = (source.width(), source.height());
@@ -172,16 +346,26 @@ pub fn encode(source: &Texture, cfg: &EncoderConfig) -> Result<Encoding> {
              2×2 block), got {w}×{h}; crop or pad the texture"
         )));
     }
+    if cfg.grid == SearchGrid::EvenOffset && (w < 6 || h < 6) {
+        return Err(Error::InvalidInput(format!(
+            "the even-offset grid needs sides of at least 6 texels (every texel of R needs a \
+             block at an even offset), got {w}×{h}"
+        )));
+    }
     let t0 = Instant::now();
-    let reduced = source.reduce()?;
-    let planes = Planes::new(&reduced);
-    let (wr, hr) = (reduced.width(), reduced.height());
+    let reduced = match cfg.reduction {
+        Reduction::Box => source.reduce()?,
+        Reduction::Binomial => source.reduce_binomial()?,
+    };
+    let planes = Planes::new(&reduced, cfg);
+    let hr = reduced.height();
+    let kept = AtomicU64::new(0);
     let rows: Vec<Vec<TexelResult>> = (0..hr)
         .into_par_iter()
-        .map(|cy| search_row(source, &reduced, &planes, cfg, cy))
-        .collect();
+        .map(|cy| search_row(source, &reduced, &planes, cfg, cy, &kept))
+        .collect::<Result<_>>()?;
 
-    let ch = source.channels();
+    let (wr, ch) = (reduced.width(), source.channels());
     let n = wr * hr;
     let mut cand = Candidates {
         width: wr,
@@ -198,11 +382,13 @@ pub fn encode(source: &Texture, cfg: &EncoderConfig) -> Result<Encoding> {
     let mut offsets = Vec::with_capacity(n * ch);
     let mut sse_sum = 0.0f64;
     let mut scored = 0u64;
+    let mut most = 0usize;
     for r in rows.into_iter().flatten() {
         coords.push(r.coords[0]);
         offsets.extend_from_slice(&r.offsets[..ch]);
         sse_sum += f64::from(r.sse[0]);
         scored += r.scored;
+        most = most.max(r.coords.len());
         cand.coords.extend_from_slice(&r.coords);
         cand.offsets.extend_from_slice(&r.offsets);
         cand.sse.extend_from_slice(&r.sse);
@@ -219,50 +405,88 @@ pub fn encode(source: &Texture, cfg: &EncoderConfig) -> Result<Encoding> {
             candidates_scored: scored,
             mean_sse: sse_sum / n as f64,
             mean_candidates,
+            most_candidates: most,
         },
     })
 }
 
-/// Candidate positions (top-left texels of R's 2×2 blocks) as structure-of-arrays planes.
-struct Planes {
-    /// Candidates per row (R's width − 1) and rows (R's height − 1).
-    cw: usize,
-    ch_rows: usize,
-    /// 3 planes per channel of mean-removed values d̃₀, d̃₁, d̃₂.
+/// The candidate blocks at positions (px + s·i, py + s·j) of R, as structure-of-arrays planes.
+struct Lattice {
+    px: usize,
+    py: usize,
+    /// Positions per row.
+    nx: usize,
+    /// `NP` planes (see the module docs), each `nx × ny`.
     d: Vec<Vec<f32>>,
-    /// ‖d̃‖² over the four texels and every channel.
+    /// ‖d‖² (raw) or ‖d̃‖² (mean-removed) over the four texels and every channel.
     q: Vec<f32>,
 }
 
+/// The lattices of a grid: one for `all` and `even`, four parity classes for `even-offset`.
+struct Planes {
+    stride: usize,
+    lattices: Vec<Lattice>,
+    /// Planes per lattice: 4 or 3 per channel.
+    np: usize,
+}
+
 impl Planes {
-    fn new(r: &Texture) -> Self {
-        let (cw, chr, nc) = (r.width() - 1, r.height() - 1, r.channels());
-        let mut d = vec![vec![0.0f32; cw * chr]; 3 * nc];
-        let mut q = vec![0.0f32; cw * chr];
-        for y in 0..chr {
-            for x in 0..cw {
-                let k = y * cw + x;
-                let mut qq = 0.0f32;
-                for c in 0..nc {
-                    let v = block(r, x, y, c);
-                    let m = 0.25 * (v[0] + v[1] + v[2] + v[3]);
-                    for j in 0..4 {
-                        let t = v[j] - m;
-                        qq += t * t;
-                        if j < 3 {
-                            d[3 * c + j][k] = t;
+    fn new(r: &Texture, cfg: &EncoderConfig) -> Self {
+        let s = cfg.grid.stride();
+        let classes: &[(usize, usize)] = match cfg.grid {
+            SearchGrid::All | SearchGrid::Even => &[(0, 0)],
+            SearchGrid::EvenOffset => &[(0, 0), (1, 0), (0, 1), (1, 1)],
+        };
+        let nc = r.channels();
+        let per = match cfg.matching {
+            Matching::Raw => 4,
+            Matching::MeanRemoved => 3,
+        };
+        let count = |p: usize, n: usize| if p + 2 <= n { (n - 2 - p) / s + 1 } else { 0 };
+        let lattices = classes
+            .iter()
+            .map(|&(px, py)| {
+                let (nx, ny) = (count(px, r.width()), count(py, r.height()));
+                let mut d = vec![vec![0.0f32; nx * ny]; per * nc];
+                let mut q = vec![0.0f32; nx * ny];
+                for j in 0..ny {
+                    for i in 0..nx {
+                        let k = j * nx + i;
+                        let (x, y) = (px + s * i, py + s * j);
+                        let mut qq = 0.0f32;
+                        for c in 0..nc {
+                            let v = block(r, x, y, c);
+                            let m = match cfg.matching {
+                                Matching::Raw => 0.0,
+                                Matching::MeanRemoved => 0.25 * (v[0] + v[1] + v[2] + v[3]),
+                            };
+                            for (jj, &vj) in v.iter().enumerate() {
+                                let t = vj - m;
+                                qq += t * t;
+                                if jj < per {
+                                    d[per * c + jj][k] = t;
+                                }
+                            }
                         }
+                        q[k] = qq;
                     }
                 }
-                q[k] = qq;
-            }
-        }
+                Lattice { px, py, nx, d, q }
+            })
+            .collect();
         Planes {
-            cw,
-            ch_rows: chr,
-            d,
-            q,
+            stride: s,
+            lattices,
+            np: per * nc,
         }
+    }
+
+    fn lattice(&self, grid: SearchGrid, cx: usize, cy: usize) -> &Lattice {
+        let (px, py) = grid.class(cx, cy);
+        self.lattices
+            .iter()
+            .find(|l| (l.px, l.py) == (px, py))
+            .expect("a lattice for every parity class of the grid")
     }
 }
 
@@ -276,6 +500,31 @@ fn block(t: &Texture, x: usize, y: usize, c: usize) -> [f32; 4] {
     ]
 }
 
+/// The inclusive range of positions of R along one axis that texel coordinate `c` may use:
+/// within ±window, inside R (a block needs two texels), and for the even grids with half
+/// relative coordinate in [HALF_MIN, HALF_MAX]; then the lattice indices (p + s·i) inside it.
+fn axis_range(
+    cfg: &EncoderConfig,
+    c: usize,
+    n: usize,
+    p: usize,
+    s: usize,
+) -> Option<(usize, usize)> {
+    let c = c as i64;
+    let win = i64::from(cfg.window);
+    let mut lo = (c - win).max(0);
+    let mut hi = (c + win).min(n as i64 - 2);
+    if let Some(b) = cfg.grid.half_base(c as usize) {
+        let b = b as i64;
+        lo = lo.max(b + 2 * i64::from(HALF_MIN));
+        hi = hi.min(b + 2 * i64::from(HALF_MAX));
+    }
+    let (p, s) = (p as i64, s as i64);
+    let ilo = (lo - p + s - 1).div_euclid(s).max(0);
+    let ihi = (hi - p).div_euclid(s);
+    (ilo <= ihi).then_some((ilo as usize, ihi as usize))
+}
+
 /// One texel's candidates, best first.
 struct TexelResult {
     coords: Vec<u32>,
@@ -285,84 +534,126 @@ struct TexelResult {
     scored: u64,
 }
 
-/// A texel's range block, prepared for scoring.
+/// A texel's range block, prepared for scoring: the weights w of ‖d‖² − 2 w·d per plane.
 struct Range {
-    /// Dot-product weights r̃ⱼ − r̃₃ (j < 3) per channel, flattened like the planes.
-    w: [f32; 9],
+    w: [f32; 12],
+    /// ‖r‖² (raw) or ‖r̃‖² (mean-removed): the score's constant part, added back at the end.
+    norm: f32,
 }
 
-fn range_block(s: &Texture, cx: usize, cy: usize) -> Range {
-    let mut w = [0.0f32; 9];
+fn range_block(s: &Texture, cfg: &EncoderConfig, cx: usize, cy: usize) -> Range {
+    let mut w = [0.0f32; 12];
+    let mut norm = 0.0f32;
     for c in 0..s.channels() {
         let v = block(s, 2 * cx, 2 * cy, c);
-        let m = 0.25 * (v[0] + v[1] + v[2] + v[3]);
-        let t3 = v[3] - m;
-        for j in 0..3 {
-            w[3 * c + j] = (v[j] - m) - t3;
-        }
-    }
-    Range { w }
-}
-
-/// The best candidates of one texel, ordered by (score, distance, position).
-struct TopK {
-    k: usize,
-    delta: f32,
-    items: Vec<(f32, u32, u32)>,
-}
-
-impl TopK {
-    fn new(k: usize, delta: f32) -> Self {
-        TopK {
-            k,
-            delta,
-            items: Vec::with_capacity(k + 1),
-        }
-    }
-
-    /// Scores above this cannot enter the list.
-    fn threshold(&self) -> f32 {
-        match self.items.first() {
-            None => f32::INFINITY,
-            Some(&(best, _, _)) => {
-                let t = best + self.delta;
-                if self.items.len() == self.k {
-                    t.min(self.items[self.k - 1].0)
-                } else {
-                    t
+        match cfg.matching {
+            Matching::Raw => {
+                for j in 0..4 {
+                    w[4 * c + j] = v[j];
+                    norm += v[j] * v[j];
                 }
+            }
+            Matching::MeanRemoved => {
+                let m = 0.25 * (v[0] + v[1] + v[2] + v[3]);
+                let t3 = v[3] - m;
+                for j in 0..3 {
+                    w[3 * c + j] = (v[j] - m) - t3;
+                }
+                norm += v.iter().map(|x| (x - m) * (x - m)).sum::<f32>();
             }
         }
     }
+    Range { w, norm }
+}
 
-    /// Whether no candidate of a row can enter the list, given a lower bound of the row's
-    /// (score, distance, position) keys.
-    fn cannot_improve(&self, score: f32, man: u32, idx: u32) -> bool {
-        let thr = self.threshold();
-        if score != thr {
-            return score > thr;
-        }
-        // A tie on the score enters only if it wins the tie-break on (distance, position).
-        self.items.len() == self.k && {
-            let last = self.items[self.k - 1];
-            (man, idx) >= (last.1, last.2)
+/// A candidate's ordering key: (score, Manhattan distance to the centre, index in R).
+type Key = (f32, u32, u32);
+
+fn key_cmp(a: &Key, b: &Key) -> Ordering {
+    a.0.total_cmp(&b.0).then((a.1, a.2).cmp(&(b.1, b.2)))
+}
+
+fn key_lt(a: &Key, b: &Key) -> bool {
+    key_cmp(a, b) == Ordering::Less
+}
+
+/// The candidate set Ω of one texel while its search runs: every key that may still end up in
+/// {best} ∪ {score < best + ΔE_max}, capped to the `cap` smallest keys.
+///
+/// Keys are collected unsorted and compacted (filtered by the current best, sorted, truncated
+/// to the cap) when the list doubles, so an uncapped Ω of any size costs O(n log n).
+struct TopK {
+    cap: usize,
+    delta: f32,
+    best: Option<Key>,
+    /// Once `cap` keys are known: the cap-th smallest, which later keys must beat.
+    kth: Option<Key>,
+    items: Vec<Key>,
+    compact_at: usize,
+}
+
+impl TopK {
+    fn new(cap: Option<usize>, delta: f32) -> Self {
+        let cap = cap.unwrap_or(usize::MAX);
+        TopK {
+            cap,
+            delta,
+            best: None,
+            kth: None,
+            items: Vec::new(),
+            compact_at: cap.saturating_mul(2).clamp(2, 256),
         }
     }
 
-    fn push(&mut self, item: (f32, u32, u32)) {
-        let key = |a: &(f32, u32, u32)| (a.0, a.1, a.2);
-        let pos = self
-            .items
-            .partition_point(|x| key(x).partial_cmp(&key(&item)) == Some(std::cmp::Ordering::Less));
-        if pos >= self.k {
+    /// Whether a key can belong to the final set, given what has been seen so far. Monotone:
+    /// a key that is refused refuses every larger key too.
+    fn admits(&self, k: &Key) -> bool {
+        let Some(b) = self.best else {
+            return true;
+        };
+        (key_lt(k, &b) || k.0 < b.0 + self.delta) && self.kth.is_none_or(|t| key_lt(k, &t))
+    }
+
+    /// Scores above this are never admitted.
+    fn threshold(&self) -> f32 {
+        let Some(b) = self.best else {
+            return f32::INFINITY;
+        };
+        let t = b.0 + self.delta;
+        self.kth.map_or(t, |k| t.min(k.0))
+    }
+
+    fn push(&mut self, k: Key) {
+        if !self.admits(&k) {
             return;
         }
-        self.items.insert(pos, item);
-        self.items.truncate(self.k);
-        let limit = self.items[0].0 + self.delta;
-        while self.items.last().is_some_and(|x| x.0 > limit) {
-            self.items.pop();
+        if self.best.is_none_or(|b| key_lt(&k, &b)) {
+            self.best = Some(k);
         }
+        self.items.push(k);
+        if self.items.len() >= self.compact_at {
+            self.compact();
+        }
+    }
+
+    fn compact(&mut self) {
+        let Some(b) = self.best else {
+            return;
+        };
+        let delta = self.delta;
+        self.items.retain(|k| *k == b || k.0 < b.0 + delta);
+        self.items.sort_unstable_by(key_cmp);
+        if self.items.len() >= self.cap {
+            self.items.truncate(self.cap);
+            self.kth = self.items.last().copied();
+        }
+        self.compact_at = (2 * self.items.len()).max(self.compact_at);
+    }
+
+    /// The final set, best first.
+    fn finish(mut self) -> Vec<Key> {
+        self.compact();
+        self.items
     }
 }
 
@@ -371,108 +662,142 @@ const TILE: usize = 4;
 /// Lanes of the vectorised candidate loop.
 const LANES: usize = 8;
 
+/// Searches row `cy` of R; `kept` counts the candidates kept by all rows so far, so that an
+/// Ω too large for memory is refused (the total only grows, so whether it is refused does not
+/// depend on the order rows finish in).
 fn search_row(
     s: &Texture,
     r: &Texture,
     planes: &Planes,
     cfg: &EncoderConfig,
     cy: usize,
-) -> Vec<TexelResult> {
+    kept: &AtomicU64,
+) -> Result<Vec<TexelResult>> {
     let wr = r.width();
-    let mut out = Vec::with_capacity(wr);
-    let mut buf = vec![0.0f32; TILE * (planes.cw + LANES)];
-    let mut cx = 0;
-    while cx < wr {
-        let t = if cx + TILE <= wr { TILE } else { 1 };
-        let tops = search_tile(s, planes, cfg, cx, cy, t, &mut buf);
-        for (i, (top, scored)) in tops.into_iter().enumerate() {
-            out.push(finish(s, r, cx + i, cy, top, scored));
+    let mut out: Vec<Option<TexelResult>> = (0..wr).map(|_| None).collect();
+    let max_nx = planes.lattices.iter().map(|l| l.nx).max().unwrap_or(0);
+    let mut buf = vec![0.0f32; TILE * (max_nx + LANES)];
+    // Texels of a tile share a lattice: neighbours, or every other texel for even-offset.
+    let step = if cfg.grid == SearchGrid::EvenOffset {
+        2
+    } else {
+        1
+    };
+    for first in 0..step {
+        let mut cx = first;
+        while cx < wr {
+            let t = if cx + (TILE - 1) * step < wr { TILE } else { 1 };
+            let tile: Vec<usize> = (0..t).map(|i| cx + i * step).collect();
+            let tops = search_tile(s, planes, cfg, &tile, cy, &mut buf)?;
+            for (&x, (top, scored)) in tile.iter().zip(tops) {
+                let res = finish(s, r, cfg, x, cy, top, scored);
+                let n = res.coords.len() as u64;
+                if kept.fetch_add(n, AtomicOrdering::Relaxed) + n > MAX_TOTAL_CANDIDATES {
+                    return Err(Error::InvalidInput(format!(
+                        "the candidate sets Ω hold more than {MAX_TOTAL_CANDIDATES} candidates in \
+                         all (ΔE_max {} keeps too many blocks of this texture): set \
+                         max_candidates or lower delta_e_max",
+                        cfg.delta_e_max
+                    )));
+                }
+                out[x] = Some(res);
+            }
+            cx += t * step;
         }
-        cx += t;
     }
-    out
+    Ok(out
+        .into_iter()
+        .map(|o| o.expect("every texel of the row searched"))
+        .collect())
 }
 
-/// Searches texels `cx..cx + t` of row `cy`; returns their candidate lists and counts.
+/// Searches the texels `tile` (same row `cy`, same lattice); returns their candidate sets and
+/// the number of candidates each scored.
 fn search_tile(
     s: &Texture,
     planes: &Planes,
     cfg: &EncoderConfig,
-    cx: usize,
+    tile: &[usize],
     cy: usize,
-    t: usize,
     buf: &mut [f32],
-) -> Vec<(TopK, u64)> {
-    let win = cfg.window as usize;
-    let (cw, chr) = (planes.cw, planes.ch_rows);
-    let ky0 = cy.saturating_sub(win);
-    let ky1 = (cy + win).min(chr - 1);
-    let ux0 = cx.saturating_sub(win);
-    let ux1 = (cx + t - 1 + win).min(cw - 1);
-    let len = ux1 + 1 - ux0;
-    let stride = cw + LANES;
-    let ranges: Vec<Range> = (0..t).map(|i| range_block(s, cx + i, cy)).collect();
-    // Each texel's own window inside the tile's union of windows, as row offsets.
-    let lo: Vec<u32> = (0..t)
-        .map(|i| ((cx + i).saturating_sub(win).max(ux0) - ux0) as u32)
-        .collect();
-    let hi: Vec<u32> = (0..t)
-        .map(|i| ((cx + i + win).min(cw - 1) - ux0) as u32)
-        .collect();
-    let mut tops: Vec<(TopK, u64)> = (0..t)
+) -> Result<Vec<(TopK, u64)>> {
+    let lat = planes.lattice(cfg.grid, tile[0], cy);
+    let st = planes.stride;
+    let (wr, hr) = (s.width() / 2, s.height() / 2);
+    let no_block = |cx: usize| {
+        Error::InvalidInput(format!(
+            "texel ({cx}, {cy}) of the {wr}×{hr} reduced texture has no candidate block in grid `{}` \
+             with window {}: widen the window or use a larger texture",
+            cfg.grid, cfg.window
+        ))
+    };
+    let (jlo, jhi) = axis_range(cfg, cy, hr, lat.py, st).ok_or_else(|| no_block(tile[0]))?;
+    let mut win = Vec::with_capacity(tile.len());
+    for &cx in tile {
+        win.push(axis_range(cfg, cx, wr, lat.px, st).ok_or_else(|| no_block(cx))?);
+    }
+    let ulo = win.iter().map(|w| w.0).min().expect("a non-empty tile");
+    let uhi = win.iter().map(|w| w.1).max().expect("a non-empty tile");
+    let len = uhi + 1 - ulo;
+    let stride = lat.nx + LANES;
+    let ranges: Vec<Range> = tile.iter().map(|&cx| range_block(s, cfg, cx, cy)).collect();
+    let lo: Vec<u32> = win.iter().map(|w| (w.0 - ulo) as u32).collect();
+    let hi: Vec<u32> = win.iter().map(|w| (w.1 - ulo) as u32).collect();
+    let mut tops: Vec<(TopK, u64)> = tile
+        .iter()
         .map(|_| (TopK::new(cfg.max_candidates, cfg.delta_e_max), 0))
         .collect();
-    let nplanes = 3 * s.channels();
+    let k = cfg.distance.scale();
+    let (cy0, pos) = (k * cy, |j: usize| lat.py + st * j);
+    // Rows nearest to the distance centre first, so that the best is found early; the result
+    // does not depend on this order.
+    let mut rows: Vec<usize> = (jlo..=jhi).collect();
+    rows.sort_by_key(|&j| (pos(j).abs_diff(cy0), j));
     let mut mins = [f32::INFINITY; TILE];
-    // Rows nearest to the texel first, so that ties (equal scores, e.g. flat blocks) are
-    // settled early by distance; the result does not depend on this order.
-    // (The last texel row has no candidate row of its own: R's last row starts no block.)
-    let inside = move |k: &usize| (ky0..=ky1).contains(k);
-    let rows = (0..=win.min(chr)).flat_map(move |d| {
-        let up = cy.checked_sub(d).filter(inside);
-        let down = (d > 0).then_some(cy + d).filter(inside);
-        up.into_iter().chain(down)
-    });
-    for ky in rows {
-        let base = ky * cw + ux0;
-        let dy = ky.abs_diff(cy) as f32;
+    for j in rows {
+        let y = pos(j);
+        let base = j * lat.nx + ulo;
         let job = RowJob {
-            d: &planes.d,
-            q: &planes.q[base..base + len],
+            d: &lat.d,
+            q: &lat.q[base..base + len],
             base,
             len,
-            x0: ux0 as f32,
+            x0: (lat.px + st * ulo) as f32,
+            xstep: st as f32,
             ranges: &ranges,
             lo: &lo,
             hi: &hi,
-            cx: cx as f32,
+            cx: tile.iter().map(|&cx| (k * cx) as f32).collect(),
             beta: cfg.beta,
-            dy,
+            dy: y.abs_diff(cy0) as f32,
         };
-        score_row(&job, nplanes, buf, stride, &mut mins);
+        score_row(&job, planes.np, buf, stride, &mut mins);
         for (i, (top, scored)) in tops.iter_mut().enumerate() {
             let (lo, hi) = (lo[i] as usize, hi[i] as usize);
             *scored += (hi + 1 - lo) as u64;
-            if top.cannot_improve(mins[i], ky.abs_diff(cy) as u32, (ky * cw + ux0 + lo) as u32) {
+            let x_first = lat.px + st * (ulo + lo);
+            let bound = (mins[i], y.abs_diff(cy0) as u32, (y * wr + x_first) as u32);
+            if !top.admits(&bound) {
                 continue;
             }
             // Only chunks of eight that hold a qualifying score are scanned one by one.
             let row = &buf[i * stride + lo..i * stride + hi + 1];
+            let cxk = k * tile[i];
             for (n, chunk) in row.chunks(LANES).enumerate() {
                 if chunk_min(chunk) > top.threshold() {
                     continue;
                 }
-                for (j, &sc) in chunk.iter().enumerate() {
+                for (jj, &sc) in chunk.iter().enumerate() {
                     if sc <= top.threshold() {
-                        let kx = ux0 + lo + n * LANES + j;
-                        let man = (kx.abs_diff(cx + i) + ky.abs_diff(cy)) as u32;
-                        top.push((sc, man, (ky * cw + kx) as u32));
+                        let x = lat.px + st * (ulo + lo + n * LANES + jj);
+                        let man = (x.abs_diff(cxk) + y.abs_diff(cy0)) as u32;
+                        top.push((sc, man, (y * wr + x) as u32));
                     }
                 }
             }
         }
     }
-    tops
+    Ok(tops)
 }
 
 /// One row of candidates to score against a tile of range blocks.
@@ -481,13 +806,17 @@ struct RowJob<'a> {
     q: &'a [f32],
     base: usize,
     len: usize,
+    /// Position in R of the row's first entry, and the distance between entries.
     x0: f32,
+    xstep: f32,
     ranges: &'a [Range],
     /// Texel i scores row offsets `lo[i]..=hi[i]` (its own window).
     lo: &'a [u32],
     hi: &'a [u32],
-    cx: f32,
+    /// Each texel's distance centre along x.
+    cx: Vec<f32>,
     beta: f32,
+    /// The row's distance from the centre along y.
     dy: f32,
 }
 
@@ -512,10 +841,11 @@ fn score_row(
             }
         };
     }
-    if nplanes == 3 {
-        dispatch!(3)
-    } else {
-        dispatch!(9)
+    match nplanes {
+        3 => dispatch!(3),
+        4 => dispatch!(4),
+        9 => dispatch!(9),
+        _ => dispatch!(12),
     }
 }
 
@@ -551,7 +881,7 @@ fn score_row_avx2<const NP: usize, const T: usize, const BETA: bool>(
     let d: [&[f32]; NP] = std::array::from_fn(|p| &job.d[p][job.base..job.base + job.len]);
     let w: [[__m256; NP]; T] =
         std::array::from_fn(|i| std::array::from_fn(|p| _mm256_set1_ps(job.ranges[i].w[p])));
-    let cxs: [__m256; T] = std::array::from_fn(|i| _mm256_set1_ps(job.cx + i as f32));
+    let cxs: [__m256; T] = std::array::from_fn(|i| _mm256_set1_ps(job.cx[i]));
     let lo_m1: [__m256i; T] = std::array::from_fn(|i| _mm256_set1_epi32(job.lo[i] as i32 - 1));
     let hi_p1: [__m256i; T] = std::array::from_fn(|i| _mm256_set1_epi32(job.hi[i] as i32 + 1));
     let inner_lo = job.lo[..T].iter().copied().max().unwrap_or(0) as usize;
@@ -562,6 +892,7 @@ fn score_row_avx2<const NP: usize, const T: usize, const BETA: bool>(
     let beta = _mm256_set1_ps(job.beta);
     let dyv = _mm256_set1_ps(job.dy);
     let x0 = _mm256_set1_ps(job.x0);
+    let xstep = _mm256_set1_ps(job.xstep);
     let iota = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
     let mut mn = [inf; T];
     let chunks = job.len / LANES;
@@ -576,7 +907,7 @@ fn score_row_avx2<const NP: usize, const T: usize, const BETA: bool>(
         // SAFETY: as above.
         let qv = unsafe { _mm256_loadu_ps(qs.as_ptr()) };
         let jv = _mm256_add_epi32(_mm256_set1_epi32(b as i32), iota);
-        let x = _mm256_add_ps(x0, _mm256_cvtepi32_ps(jv));
+        let x = _mm256_add_ps(x0, _mm256_mul_ps(xstep, _mm256_cvtepi32_ps(jv)));
         let interior = b >= inner_lo && b + LANES - 1 <= inner_hi;
         for i in 0..T {
             let mut dot = _mm256_mul_ps(w[i][0], dv[0]);
@@ -634,8 +965,8 @@ fn tail_scores<const NP: usize, const T: usize, const BETA: bool>(
             }
             let mut sc = job.q[j] - 2.0 * dot;
             if BETA {
-                let x = job.x0 + j as f32;
-                sc += job.beta * ((x - (job.cx + i as f32)).abs() + job.dy);
+                let x = job.x0 + job.xstep * j as f32;
+                sc += job.beta * ((x - job.cx[i]).abs() + job.dy);
             }
             if !(j as u32 >= job.lo[i] && j as u32 <= job.hi[i]) {
                 sc = f32::INFINITY;
@@ -648,8 +979,8 @@ fn tail_scores<const NP: usize, const T: usize, const BETA: bool>(
     }
 }
 
-/// score = ‖d̃‖² − 2 Σ w·d̃ (+ β·(|Δx| + |Δy|)), +∞ outside the texel's window: the
-/// portable path (and the reference for the AVX2 one).
+/// score = ‖d‖² − 2 Σ w·d (+ β·distance), +∞ outside the texel's window: the portable path
+/// (and the reference for the AVX2 one).
 fn score_row_kernel<const NP: usize, const T: usize, const BETA: bool>(
     job: &RowJob<'_>,
     buf: &mut [f32],
@@ -667,10 +998,20 @@ fn chunk_min(c: &[f32]) -> f32 {
         .fold(f32::INFINITY, |a, &b| if b < a { b } else { a })
 }
 
-/// Turns a texel's candidate list into coordinates, offsets and exact errors.
-fn finish(s: &Texture, r: &Texture, cx: usize, cy: usize, top: TopK, scored: u64) -> TexelResult {
-    let (wr, cw, nc) = (r.width(), r.width() - 1, r.channels());
-    let n = top.items.len();
+/// Turns a texel's candidate set into coordinates, offsets (Eq. 4) and exact collage errors.
+fn finish(
+    s: &Texture,
+    r: &Texture,
+    cfg: &EncoderConfig,
+    cx: usize,
+    cy: usize,
+    top: TopK,
+    scored: u64,
+) -> TexelResult {
+    let (wr, nc) = (r.width(), r.channels());
+    let norm = range_block(s, cfg, cx, cy).norm;
+    let items = top.finish();
+    let n = items.len();
     let mut res = TexelResult {
         coords: Vec::with_capacity(n),
         offsets: Vec::with_capacity(n * nc),
@@ -678,17 +1019,9 @@ fn finish(s: &Texture, r: &Texture, cx: usize, cy: usize, top: TopK, scored: u64
         scores: Vec::with_capacity(n),
         scored,
     };
-    // The kernel's score leaves out ‖r̃‖², the same for every candidate: add it back.
-    let rnorm: f32 = (0..nc)
-        .map(|c| {
-            let v = block(s, 2 * cx, 2 * cy, c);
-            let m = 0.25 * (v[0] + v[1] + v[2] + v[3]);
-            v.iter().map(|x| (x - m) * (x - m)).sum::<f32>()
-        })
-        .sum();
-    for &(score, _, k) in &top.items {
-        let (kx, ky) = (k as usize % cw, k as usize / cw);
-        res.coords.push((ky * wr + kx) as u32);
+    for &(score, _, k) in &items {
+        let (kx, ky) = (k as usize % wr, k as usize / wr);
+        res.coords.push(k);
         let mut sse = 0.0f32;
         for c in 0..nc {
             let rv = block(s, 2 * cx, 2 * cy, c);
@@ -701,7 +1034,8 @@ fn finish(s: &Texture, r: &Texture, cx: usize, cy: usize, top: TopK, scored: u64
             }
         }
         res.sse.push(sse);
-        res.scores.push(score + rnorm);
+        // The kernel's score leaves out ‖r‖² (or ‖r̃‖²), the same for every candidate.
+        res.scores.push(score + norm);
     }
     res
 }
@@ -710,42 +1044,73 @@ fn finish(s: &Texture, r: &Texture, cx: usize, cy: usize, top: TopK, scored: u64
 mod tests {
     use super::*;
 
-    /// The exhaustive search, written plainly: the fast kernel must agree with it.
-    fn brute(s: &Texture, cfg: &EncoderConfig) -> Vec<(u32, f32)> {
+    /// The search written plainly in f64, for every grid, criterion and distance centre: each
+    /// texel's candidate set, best first, as (index in R, score).
+    fn brute(s: &Texture, cfg: &EncoderConfig) -> Vec<Vec<(u32, f64)>> {
         let r = s.reduce().unwrap();
         let (wr, hr, nc) = (r.width(), r.height(), r.channels());
+        let win = cfg.window as i64;
+        let ok = |c: usize, x: usize| -> bool {
+            let d = x as i64 - c as i64;
+            if d.abs() > win {
+                return false;
+            }
+            let base = match cfg.grid {
+                SearchGrid::All => return true,
+                SearchGrid::Even if !x.is_multiple_of(2) => return false,
+                SearchGrid::Even => 2 * (c as i64 / 2),
+                SearchGrid::EvenOffset if d % 2 != 0 => return false,
+                SearchGrid::EvenOffset => c as i64,
+            };
+            let h = (x as i64 - base) / 2;
+            (i64::from(HALF_MIN)..=i64::from(HALF_MAX)).contains(&h)
+        };
+        let k = cfg.distance.scale();
         let mut out = Vec::new();
         for cy in 0..hr {
             for cx in 0..wr {
-                let mut best = (f64::INFINITY, u32::MAX, 0u32);
+                let mut all: Vec<(f64, u32, u32)> = Vec::new();
                 for ky in 0..hr - 1 {
                     for kx in 0..wr - 1 {
-                        if kx.abs_diff(cx) > cfg.window as usize
-                            || ky.abs_diff(cy) > cfg.window as usize
-                        {
+                        if !ok(cx, kx) || !ok(cy, ky) {
                             continue;
                         }
-                        let mut sse = 0.0f64;
+                        let mut e = 0.0f64;
                         for c in 0..nc {
                             let rv = block(s, 2 * cx, 2 * cy, c).map(f64::from);
                             let dv = block(&r, kx, ky, c).map(f64::from);
-                            let o = (rv.iter().sum::<f64>() - dv.iter().sum::<f64>()) / 4.0;
-                            sse += (0..4).map(|j| (rv[j] - dv[j] - o).powi(2)).sum::<f64>();
+                            let o = match cfg.matching {
+                                Matching::Raw => 0.0,
+                                Matching::MeanRemoved => {
+                                    (rv.iter().sum::<f64>() - dv.iter().sum::<f64>()) / 4.0
+                                }
+                            };
+                            e += (0..4).map(|j| (rv[j] - dv[j] - o).powi(2)).sum::<f64>();
                         }
-                        let man = (kx.abs_diff(cx) + ky.abs_diff(cy)) as u32;
-                        let score = sse + f64::from(cfg.beta) * f64::from(man);
-                        if score < best.0 - 1e-3 {
-                            best = (score, man, (ky * wr + kx) as u32);
-                        }
+                        let man = (kx.abs_diff(k * cx) + ky.abs_diff(k * cy)) as u32;
+                        all.push((
+                            e + f64::from(cfg.beta) * f64::from(man),
+                            man,
+                            (ky * wr + kx) as u32,
+                        ));
                     }
                 }
-                out.push((best.2, best.0 as f32));
+                all.sort_by(|a, b| a.0.total_cmp(&b.0).then((a.1, a.2).cmp(&(b.1, b.2))));
+                let best = all[0].0;
+                let mut set: Vec<(u32, f64)> = all
+                    .iter()
+                    .enumerate()
+                    .filter(|(i, a)| *i == 0 || a.0 < best + f64::from(cfg.delta_e_max))
+                    .map(|(_, a)| (a.2, a.0))
+                    .collect();
+                set.truncate(cfg.max_candidates.unwrap_or(usize::MAX));
+                out.push(set);
             }
         }
         out
     }
 
-    fn noise(w: usize, h: usize, ch: usize, seed: u64) -> Texture {
+    fn noise(w: usize, h: usize, ch: usize, levels: u64, seed: u64) -> Texture {
         let mut state = seed
             .wrapping_mul(6364136223846793005)
             .wrapping_add(1442695040888963407);
@@ -754,29 +1119,102 @@ mod tests {
                 state = state
                     .wrapping_mul(6364136223846793005)
                     .wrapping_add(1442695040888963407);
-                ((state >> 33) % 256) as f32
+                ((state >> 33) % levels * (256 / levels)) as f32
             })
             .collect();
         Texture::new(w, h, ch, v).unwrap()
     }
 
+    fn cfg(
+        matching: Matching,
+        grid: SearchGrid,
+        distance: DistanceCentre,
+        window: u32,
+        beta: f32,
+        delta: f32,
+        cap: Option<usize>,
+    ) -> EncoderConfig {
+        EncoderConfig {
+            reduction: Reduction::Box,
+            window,
+            matching,
+            grid,
+            beta,
+            distance,
+            delta_e_max: delta,
+            max_candidates: cap,
+        }
+    }
+
     #[test]
-    fn fast_search_finds_the_exhaustive_minimum() {
-        for (ch, beta, window) in [(1, 0.0, 255), (3, 0.0, 3), (1, 2.0, 5), (3, 0.5, 255)] {
-            let s = noise(38, 30, ch, 7 + ch as u64);
-            let cfg = EncoderConfig {
-                window,
-                beta,
-                ..EncoderConfig::default()
-            };
+    fn raw_matching_equals_the_exhaustive_search_exactly() {
+        // Raw scores of 8-bit textures are exact integers in f32: the candidate sets must be
+        // the same, in the same order, with the same scores. Coarse grey levels make ties.
+        use DistanceCentre::*;
+        use SearchGrid::*;
+        let cases = [
+            (38, 30, 1, 255, All, Domain, 0.0, 0.0, Some(1)),
+            (38, 30, 3, 3, All, Range, 1.0, 100.0, None),
+            (40, 28, 1, 5, Even, Range, 1.0, 100.0, None),
+            // Grey levels are multiples of 32, raw SSEs of 1024: candidates at exactly
+            // E* + ΔE_max are frequent and must be left out (Eq. 13 is strict).
+            (40, 28, 1, 255, Even, Range, 0.0, 2048.0, None),
+            (40, 28, 3, 255, Even, Domain, 0.5, 3000.0, Some(7)),
+            (36, 30, 1, 4, EvenOffset, Range, 1.0, 2000.0, None),
+            (36, 30, 3, 255, EvenOffset, Domain, 0.0, 0.0, Some(1)),
+            // R is 260 wide: the half coordinate's [−125, 126] limit and the ±255 window bind.
+            (520, 8, 1, 255, Even, Range, 1.0, 100.0, None),
+            (520, 8, 1, 255, EvenOffset, Domain, 0.0, 500.0, Some(40)),
+            (520, 8, 1, 255, All, Domain, 0.0, 0.0, Some(1)),
+        ];
+        for (w, h, ch, window, grid, dist, beta, delta, cap) in cases {
+            let levels = if ch == 1 { 8 } else { 4 };
+            let s = noise(w, h, ch, levels, (w + 7 * ch) as u64);
+            let cfg = cfg(Matching::Raw, grid, dist, window, beta, delta, cap);
             let enc = encode(&s, &cfg).unwrap();
             let want = brute(&s, &cfg);
-            for (c, &(_, score)) in want.iter().enumerate() {
+            for (c, want) in want.iter().enumerate() {
+                let got: Vec<(u32, f64)> = (0..enc.candidates.count(c))
+                    .map(|k| {
+                        let (i, _, _, sc) = enc.candidates.get(c, k);
+                        (i, f64::from(sc))
+                    })
+                    .collect();
+                assert_eq!(&got, want, "texel {c} of {w}×{h}×{ch}, {cfg:?}");
+                assert_eq!(enc.code.coords()[c], want[0].0);
+            }
+        }
+    }
+
+    #[test]
+    fn mean_removed_matching_finds_the_exhaustive_minimum() {
+        use DistanceCentre::*;
+        use SearchGrid::*;
+        for (ch, grid, dist, beta, window) in [
+            (1, All, Domain, 0.0, 255),
+            (3, All, Domain, 0.0, 3),
+            (1, All, Range, 2.0, 5),
+            (3, Even, Domain, 0.5, 255),
+            (1, EvenOffset, Range, 1.0, 7),
+        ] {
+            let s = noise(38, 30, ch, 256, 7 + ch as u64);
+            let cfg = cfg(
+                Matching::MeanRemoved,
+                grid,
+                dist,
+                window,
+                beta,
+                0.0,
+                Some(1),
+            );
+            let enc = encode(&s, &cfg).unwrap();
+            for (c, want) in brute(&s, &cfg).iter().enumerate() {
                 let (_, _, sse, got) = enc.candidates.get(c, 0);
-                // Same minimum score (the position may differ only on exact ties).
+                let score = want[0].1 as f32;
+                // Same minimum score (the position may differ only on near-ties).
                 assert!(
                     (got - score).abs() <= 1e-2 * (1.0 + score.abs()),
-                    "texel {c}: fast {got} vs exhaustive {score} (ch {ch}, β {beta}, window {window})"
+                    "texel {c}: fast {got} vs exhaustive {score} ({cfg:?})"
                 );
                 assert!(sse >= 0.0);
             }
@@ -784,14 +1222,17 @@ mod tests {
     }
 
     #[test]
-    fn candidate_lists_respect_delta_and_cap() {
-        let s = noise(24, 24, 1, 3);
-        let cfg = EncoderConfig {
-            window: 6,
-            beta: 1.0,
-            delta_e_max: 400.0,
-            max_candidates: 5,
-        };
+    fn candidate_sets_respect_delta_and_cap() {
+        let s = noise(24, 24, 1, 256, 3);
+        let cfg = cfg(
+            Matching::MeanRemoved,
+            SearchGrid::All,
+            DistanceCentre::Domain,
+            6,
+            1.0,
+            400.0,
+            Some(5),
+        );
         let enc = encode(&s, &cfg).unwrap();
         let c = &enc.candidates;
         for t in 0..c.texels() {
@@ -800,7 +1241,7 @@ mod tests {
             let best = c.get(t, 0).3;
             for k in 0..n {
                 let (coord, _, _, score) = c.get(t, k);
-                assert!(score <= best + 400.0 && score >= best);
+                assert!(k == 0 || (score < best + 400.0 && score >= best));
                 let (x, y) = (t % 12, t / 12);
                 let (kx, ky) = (coord as usize % 12, coord as usize / 12);
                 assert!(kx.abs_diff(x) <= 6 && ky.abs_diff(y) <= 6);
@@ -810,12 +1251,33 @@ mod tests {
 
     #[test]
     fn bad_sizes_and_parameters_are_refused() {
-        assert!(encode(&noise(5, 8, 1, 1), &EncoderConfig::default()).is_err());
-        assert!(encode(&noise(2, 8, 1, 1), &EncoderConfig::default()).is_err());
-        let bad = EncoderConfig {
-            window: 0,
+        let t = |w, h| noise(w, h, 1, 256, 1);
+        assert!(encode(&t(5, 8), &EncoderConfig::default()).is_err());
+        assert!(encode(&t(2, 8), &EncoderConfig::default()).is_err());
+        let bad = |f: fn(&mut EncoderConfig)| {
+            let mut c = EncoderConfig::default();
+            f(&mut c);
+            encode(&t(8, 8), &c).unwrap_err().to_string()
+        };
+        assert!(bad(|c| c.window = 0).contains("window"));
+        assert!(
+            bad(|c| {
+                c.grid = SearchGrid::Even;
+                c.window = 1
+            })
+            .contains("at least 2")
+        );
+        assert!(bad(|c| c.max_candidates = Some(0)).contains("max_candidates"));
+        assert!(bad(|c| c.beta = f32::NAN).contains("beta"));
+        assert!(bad(|c| c.delta_e_max = -1.0).contains("delta_e_max"));
+        let offset = EncoderConfig {
+            grid: SearchGrid::EvenOffset,
             ..EncoderConfig::default()
         };
-        assert!(encode(&noise(8, 8, 1, 1), &bad).is_err());
+        assert!(encode(&t(4, 8), &offset).is_err());
+        assert!(encode(&t(6, 6), &offset).is_ok());
+        assert_eq!("even".parse::<SearchGrid>().unwrap(), SearchGrid::Even);
+        let e = "odd".parse::<SearchGrid>().unwrap_err().to_string();
+        assert!(e.contains("all, even, even-offset"), "{e}");
     }
 }

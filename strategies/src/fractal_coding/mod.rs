@@ -4,13 +4,18 @@
 //!
 //! The algorithm:
 //! 1. **Encode** ([`encoder`]): reduce the source S to R (½ size, 2×2 box filter, whole grey
-//!    levels). For every texel c of R, find the 2×2 block of R (top-left C(c), within ±255
-//!    texels of c) that best matches S's 2×2 range block at 2c up to a constant, and store that
-//!    constant, the offset O(c). (R, C, O) is the code ([`code`]).
+//!    levels). For every texel c of R, find the 2×2 block of R (top-left C(c), in a search set
+//!    around c) that best matches S's 2×2 range block at 2c — by raw SSE as in the paper, or
+//!    up to a constant — and store the mean difference, the offset O(c). (R, C, O) is the code
+//!    ([`code`]).
 //! 2. **Refine** ([`refine`], optional): among candidates within ΔE_max of the best
 //!    (scored with a β·Manhattan proximity term), choose per block, by block-coordinate
 //!    descent, the one minimising the variance of the Laplacian of the synthesised texture.
-//! 3. **Pack** ([`packed`]): C as 8-bit relative coordinates and O as 8-bit offsets, in PNGs.
+//! 3. **Pack** ([`packed`]): C as 8-bit coordinates (the paper's half relative coordinates,
+//!    or sign–magnitude) and O as 8-bit offsets, in PNGs.
+//!
+//! [`preset`] names two complete settings: `paper` (the method as the paper writes it) and
+//! `ifslab` (mean-removed matching over every block, this project's variant).
 //! 4. **Decode** ([`decoder`]): T_n(p) = R(c_n) + Σ_{i<n} O(c_i) with c_n = C(c_{n−1}) + Δ_n,
 //!    for a 2ⁿ-times-R output; factor 1 reconstructs the source.
 //!
@@ -36,6 +41,7 @@ pub mod code;
 pub mod decoder;
 pub mod encoder;
 pub mod packed;
+pub mod preset;
 pub mod refine;
 pub mod texture;
 
@@ -44,8 +50,12 @@ pub use code::FractalCode;
 pub use decoder::{
     decode, decode_into, decode_serial, decode_texel, levels_for_factor, output_size,
 };
-pub use encoder::{Candidates, EncodeStats, EncoderConfig, Encoding, encode};
-pub use packed::{Manifest, PackError, PackedCode, load_dir, pack, save_dir, unpack};
+pub use encoder::{
+    Candidates, DistanceCentre, EncodeStats, EncoderConfig, Encoding, HALF_MAX, HALF_MIN,
+    MAX_TOTAL_CANDIDATES, Matching, Reduction, SearchGrid, encode,
+};
+pub use packed::{CoordStorage, Manifest, PackError, PackedCode, load_dir, pack, save_dir, unpack};
+pub use preset::Preset;
 pub use refine::{RefineConfig, RefineReport, laplacian_variance, refine};
 pub use texture::{Texture, psnr};
 

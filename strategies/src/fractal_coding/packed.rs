@@ -4,24 +4,28 @@
 //! | file | size | layout |
 //! |---|---|---|
 //! | `reduced.png` | R's size | R, 8-bit grey or RGB |
-//! | `coords.png` | R's size | RGB8: R = \|Δx\|, G = \|Δy\|, B = sign bits (bit 0: Δx < 0, bit 1: Δy < 0) |
+//! | `coords.png` | R's size | RGB8, by [`CoordStorage`] (below) |
 //! | `offsets.png` | R's size | 8-bit grey or RGB: q = clamp(round(O / step) + 128, 0, 255) |
-//! | `code.json` | — | format name and version, sizes, channels, `offset_step`, encoder settings |
+//! | `code.json` | — | format name and version, sizes, channels, `offset_step`, `coord_storage`, encoder settings |
 //!
-//! Δ = C(c) − c is the relative coordinate of texel c's virtual range block: with the paper's
-//! ±255 window its magnitude fits a byte, so coordinates round-trip exactly. R is already
-//! rounded to whole grey levels by the encoder, so it round-trips exactly too (for sources in
-//! 0–255). Offsets are the lossy part: O is quantised with the step
-//! `offset_step` = 2ᵏ (k ≥ −2), the smallest such that every offset fits the byte
-//! (max |O| ≤ 127.5·step); the decoded offset is (q − 128)·step, within step / 2 of O. For an
-//! 8-bit source every offset is a multiple of ¼ (a difference of means of four integers), so
-//! when max |O| ≤ 31.875 the step is ¼ and the round trip is exact; otherwise each offset is
-//! off by at most step / 2 and a texel decoded with n levels by at most n·step / 2 (before
-//! rounding the output to 8 bits). For 8-bit sources |O| ≤ 255, so step ≤ 2.
+//! Coordinates, for texel c whose virtual range block has top-left texel C(c) = (x, y):
+//! - `half-signed` (the paper's §IV): the half relative coordinate s = x/2 − ⌊c_x/2⌋ (and the
+//!   same for y), a signed value in [−125, 126], as a two's-complement byte in R (x) and G (y);
+//!   B = 0. Decoding: x = 2⌊c_x/2⌋ + 2s. It holds the codes of the `even` search grid.
+//! - `half-signed-offset`: s = (x − c_x)/2, same bytes; x = c_x + 2s. For the `even-offset` grid.
+//! - `sign-magnitude` (this project's layout for the `all` grid): R = |Δx|, G = |Δy|,
+//!   B = sign bits (bit 0: Δx < 0, bit 1: Δy < 0), Δ = C(c) − c, |Δ| ≤ 255.
 //!
-//! The bit layout is this project's reading of the paper's 8-bit packing (relative
-//! coordinates in a byte per axis, offsets in a byte per channel); the sign byte and the
-//! adaptive offset step are documented choices of ours.
+//! Every layout stores its coordinates exactly. R is already rounded to whole grey levels by
+//! the encoder, so it round-trips exactly too (for sources in 0–255). Offsets are the lossy
+//! part: O is quantised with the step `offset_step` = 2ᵏ (k ≥ −2), the smallest such that
+//! every offset fits the byte (max |O| ≤ 127.5·step); the decoded offset is (q − 128)·step,
+//! within step / 2 of O. For an 8-bit source every offset is a multiple of ¼ (a difference of
+//! means of four integers), so when max |O| ≤ 31.875 the step is ¼ and the round trip is exact;
+//! otherwise each offset is off by at most step / 2 and a texel decoded with n levels by at
+//! most n·step / 2 (before rounding the output to 8 bits). For 8-bit sources |O| ≤ 255, so
+//! step ≤ 2. The paper stores O in an 8-bit RGB texture without saying how; the adaptive step
+//! is this project's choice.
 
 use std::path::Path;
 
@@ -30,14 +34,134 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
 use crate::fractal_coding::code::FractalCode;
+use crate::fractal_coding::encoder::{HALF_MAX, HALF_MIN, SearchGrid, named_enum};
 use crate::fractal_coding::texture::Texture;
 
 /// Format name written in the manifest.
 pub const FORMAT: &str = "ifslab-fractal-texture-8bit";
-/// Version of the layout above.
-pub const VERSION: u32 = 1;
-/// Largest relative coordinate a byte holds (the paper's search window).
+/// Version of the layout above (version 1 files, sign–magnitude only, are read too).
+pub const VERSION: u32 = 2;
+/// Largest relative coordinate the sign–magnitude layout holds.
 pub const MAX_RELATIVE: i32 = 255;
+
+/// How `coords.png` stores the coordinate texture (see the module docs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CoordStorage {
+    /// |Δx|, |Δy| and sign bits: any code with |Δ| ≤ 255.
+    #[default]
+    SignMagnitude,
+    /// The paper's half relative coordinate x/2 − ⌊c_x/2⌋ in [−125, 126], signed bytes.
+    HalfSigned,
+    /// The half relative coordinate (x − c_x)/2 in [−125, 126], signed bytes.
+    HalfSignedOffset,
+}
+named_enum!(
+    CoordStorage,
+    "coord_storage",
+    SignMagnitude => "sign-magnitude",
+    HalfSigned => "half-signed",
+    HalfSignedOffset => "half-signed-offset",
+);
+
+impl CoordStorage {
+    /// The storage that holds every code of a search grid in a byte per axis.
+    pub fn for_grid(grid: SearchGrid) -> CoordStorage {
+        match grid {
+            SearchGrid::All => CoordStorage::SignMagnitude,
+            SearchGrid::Even => CoordStorage::HalfSigned,
+            SearchGrid::EvenOffset => CoordStorage::HalfSignedOffset,
+        }
+    }
+
+    /// The base b(c) of the half coordinate along an axis, for the half layouts.
+    fn half_base(self, c: usize) -> Option<i64> {
+        match self {
+            CoordStorage::SignMagnitude => None,
+            CoordStorage::HalfSigned => SearchGrid::Even.half_base(c).map(|b| b as i64),
+            CoordStorage::HalfSignedOffset => SearchGrid::EvenOffset.half_base(c).map(|b| b as i64),
+        }
+    }
+
+    /// The three bytes of texel `c`'s coordinate `k` (both per axis: (x, y)).
+    fn encode(self, c: (usize, usize), k: (usize, usize)) -> Result<[u8; 3]> {
+        let Some(bx) = self.half_base(c.0) else {
+            let (dx, dy) = (k.0 as i64 - c.0 as i64, k.1 as i64 - c.1 as i64);
+            if dx.abs() > i64::from(MAX_RELATIVE) || dy.abs() > i64::from(MAX_RELATIVE) {
+                return Err(Error::InvalidInput(format!(
+                    "texel ({}, {}) has relative coordinate ({dx}, {dy}), beyond the ±{MAX_RELATIVE} \
+                     the sign-magnitude layout holds; encode with a window of at most {MAX_RELATIVE}",
+                    c.0, c.1
+                )));
+            }
+            return Ok([
+                dx.unsigned_abs() as u8,
+                dy.unsigned_abs() as u8,
+                u8::from(dx < 0) | (u8::from(dy < 0) << 1),
+            ]);
+        };
+        let by = self
+            .half_base(c.1)
+            .expect("a half layout has a base on both axes");
+        let half = |k: usize, b: i64| -> Option<i8> {
+            let d = k as i64 - b;
+            let s = d / 2;
+            (d % 2 == 0 && (i64::from(HALF_MIN)..=i64::from(HALF_MAX)).contains(&s))
+                .then_some(s as i8)
+        };
+        match (half(k.0, bx), half(k.1, by)) {
+            (Some(sx), Some(sy)) => Ok([sx as u8, sy as u8, 0]),
+            _ => Err(Error::InvalidInput(format!(
+                "texel ({}, {}) points at the block at ({}, {}), which the {self} layout cannot \
+                 hold (it stores half the relative coordinate, in [{HALF_MIN}, {HALF_MAX}]): encode \
+                 with grid `{}` or store the coordinates as sign-magnitude",
+                c.0,
+                c.1,
+                k.0,
+                k.1,
+                match self {
+                    CoordStorage::HalfSignedOffset => SearchGrid::EvenOffset,
+                    _ => SearchGrid::Even,
+                }
+            ))),
+        }
+    }
+
+    /// The coordinate of texel `c` stored as `b` (not yet checked against R's size).
+    fn decode(self, c: (usize, usize), b: &[u8]) -> Result<(i64, i64)> {
+        let Some(bx) = self.half_base(c.0) else {
+            if b[2] > 3 {
+                return Err(Error::InvalidInput(format!(
+                    "texel ({}, {}): sign byte {} has bits other than 0 and 1 set",
+                    c.0, c.1, b[2]
+                )));
+            }
+            let dx = if b[2] & 1 != 0 {
+                -i64::from(b[0])
+            } else {
+                i64::from(b[0])
+            };
+            let dy = if b[2] & 2 != 0 {
+                -i64::from(b[1])
+            } else {
+                i64::from(b[1])
+            };
+            return Ok((c.0 as i64 + dx, c.1 as i64 + dy));
+        };
+        let by = self
+            .half_base(c.1)
+            .expect("a half layout has a base on both axes");
+        let (sx, sy) = (i32::from(b[0] as i8), i32::from(b[1] as i8));
+        if b[2] != 0 || ![sx, sy].iter().all(|s| (HALF_MIN..=HALF_MAX).contains(s)) {
+            return Err(Error::InvalidInput(format!(
+                "texel ({}, {}): half coordinates ({sx}, {sy}) with third byte {} are not a {self} \
+                 coordinate (values in [{HALF_MIN}, {HALF_MAX}], third byte 0)",
+                c.0, c.1, b[2]
+            )));
+        }
+        Ok((bx + 2 * i64::from(sx), by + 2 * i64::from(sy)))
+    }
+}
 
 /// The manifest `code.json`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -55,6 +179,9 @@ pub struct Manifest {
     pub channels: usize,
     /// Quantisation step of the offsets (grey levels).
     pub offset_step: f32,
+    /// How `coords.png` stores the coordinates (version 1 files: sign-magnitude).
+    #[serde(default)]
+    pub coord_storage: CoordStorage,
     /// Free-form description of how the code was made (encoder and refinement settings).
     #[serde(default)]
     pub encoder: serde_json::Value,
@@ -65,8 +192,10 @@ pub struct Manifest {
 pub struct PackedCode {
     /// R, 8-bit, interleaved (`channels` per texel).
     pub reduced: Vec<u8>,
-    /// RGB8 relative coordinates, as in the table of the module docs.
+    /// RGB8 coordinates, laid out by `coord_storage`.
     pub coords: Vec<u8>,
+    /// The layout of `coords`.
+    pub coord_storage: CoordStorage,
     /// Quantised offsets, 8-bit, `channels` per texel.
     pub offsets: Vec<u8>,
     /// Width of R.
@@ -99,22 +228,14 @@ pub fn offset_step_for(max_abs: f32) -> f32 {
     step
 }
 
-/// Packs a code; refuses relative coordinates beyond ±255 (encode with a window ≤ 255).
-pub fn pack(code: &FractalCode) -> Result<(PackedCode, PackError)> {
+/// Packs a code with the given coordinate layout; refuses coordinates the layout cannot hold.
+pub fn pack(code: &FractalCode, storage: CoordStorage) -> Result<(PackedCode, PackError)> {
     let (w, h, ch) = (code.width(), code.height(), code.channels());
     let mut coords = Vec::with_capacity(w * h * 3);
     for y in 0..h {
         for x in 0..w {
-            let (dx, dy) = code.relative(x, y);
-            if dx.abs() > MAX_RELATIVE || dy.abs() > MAX_RELATIVE {
-                return Err(Error::InvalidInput(format!(
-                    "texel ({x}, {y}) has relative coordinate ({dx}, {dy}), beyond the ±{MAX_RELATIVE} \
-                     the 8-bit format holds; encode with a window of at most {MAX_RELATIVE}"
-                )));
-            }
-            coords.push(dx.unsigned_abs() as u8);
-            coords.push(dy.unsigned_abs() as u8);
-            coords.push(u8::from(dx < 0) | (u8::from(dy < 0) << 1));
+            let k = code.coords()[y * w + x] as usize;
+            coords.extend_from_slice(&storage.encode((x, y), (k % w, k / w))?);
         }
     }
     let rd = code.reduced().data();
@@ -141,6 +262,7 @@ pub fn pack(code: &FractalCode) -> Result<(PackedCode, PackError)> {
         PackedCode {
             reduced,
             coords,
+            coord_storage: storage,
             offsets,
             width: w,
             height: h,
@@ -182,26 +304,10 @@ pub fn unpack(p: &PackedCode) -> Result<FractalCode> {
     for y in 0..h {
         for x in 0..w {
             let b = &p.coords[(y * w + x) * 3..(y * w + x) * 3 + 3];
-            if b[2] > 3 {
-                return Err(Error::InvalidInput(format!(
-                    "texel ({x}, {y}): sign byte {} has bits other than 0 and 1 set",
-                    b[2]
-                )));
-            }
-            let dx = if b[2] & 1 != 0 {
-                -i64::from(b[0])
-            } else {
-                i64::from(b[0])
-            };
-            let dy = if b[2] & 2 != 0 {
-                -i64::from(b[1])
-            } else {
-                i64::from(b[1])
-            };
-            let (kx, ky) = (x as i64 + dx, y as i64 + dy);
+            let (kx, ky) = p.coord_storage.decode((x, y), b)?;
             if kx < 0 || ky < 0 || kx + 1 >= w as i64 || ky + 1 >= h as i64 {
                 return Err(Error::InvalidInput(format!(
-                    "texel ({x}, {y}): relative coordinate ({dx}, {dy}) leaves the {w}×{h} reduced texture"
+                    "texel ({x}, {y}): its block at ({kx}, {ky}) leaves the {w}×{h} reduced texture"
                 )));
             }
             coords.push((ky as usize * w + kx as usize) as u32);
@@ -217,8 +323,13 @@ pub fn unpack(p: &PackedCode) -> Result<FractalCode> {
 
 /// Writes `reduced.png`, `coords.png`, `offsets.png` and `code.json` into `dir` (created if
 /// needed), each atomically; returns what the packing changed.
-pub fn save_dir(code: &FractalCode, dir: &Path, encoder: serde_json::Value) -> Result<PackError> {
-    let (p, err) = pack(code)?;
+pub fn save_dir(
+    code: &FractalCode,
+    dir: &Path,
+    storage: CoordStorage,
+    encoder: serde_json::Value,
+) -> Result<PackError> {
+    let (p, err) = pack(code, storage)?;
     std::fs::create_dir_all(dir).map_err(|e| Error::file(dir, e))?;
     let (w, h) = (p.width as u32, p.height as u32);
     write_png(&dir.join("reduced.png"), w, h, p.channels, &p.reduced)?;
@@ -231,6 +342,7 @@ pub fn save_dir(code: &FractalCode, dir: &Path, encoder: serde_json::Value) -> R
         height: 2 * p.height,
         channels: p.channels,
         offset_step: p.offset_step,
+        coord_storage: p.coord_storage,
         encoder,
     };
     let json = serde_json::to_vec_pretty(&manifest).map_err(|e| Error::file(dir, e))?;
@@ -292,11 +404,12 @@ pub fn load_dir(dir: &Path) -> Result<(FractalCode, Manifest)> {
         )
     })?;
     let m: Manifest = serde_json::from_slice(&text).map_err(|e| Error::file(&mpath, e))?;
-    if m.format != FORMAT || m.version != VERSION {
+    let v1 = m.version == 1 && m.coord_storage == CoordStorage::SignMagnitude;
+    if m.format != FORMAT || !(m.version == VERSION || v1) {
         return Err(Error::file(
             &mpath,
             format!(
-                "format {} version {} is not {FORMAT} version {VERSION}",
+                "format {} version {} is not {FORMAT} version 1 or {VERSION}",
                 m.format, m.version
             ),
         ));
@@ -320,6 +433,7 @@ pub fn load_dir(dir: &Path) -> Result<(FractalCode, Manifest)> {
     let p = PackedCode {
         reduced: read_png(&dir.join("reduced.png"), w, h, ch)?,
         coords: read_png(&dir.join("coords.png"), w, h, 3)?,
+        coord_storage: m.coord_storage,
         offsets: read_png(&dir.join("offsets.png"), w, h, ch)?,
         width: w,
         height: h,

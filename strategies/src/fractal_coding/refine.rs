@@ -3,11 +3,12 @@
 //! Plain fractal coding picks, for each texel, the single best-matching block; on semi-random
 //! textures many blocks match almost as well, and the arbitrary choice among them leaves seams
 //! between neighbouring range blocks that the recursive decoder magnifies. The refinement
-//! (i) scores candidates with the spatial-proximity term β·(|Δx| + |Δy|) and keeps those within
-//! ΔE_max of the best (done by the encoder, see
-//! [`EncoderConfig`](crate::fractal_coding::encoder::EncoderConfig)), then (ii) visits the texels
-//! one block at a time and gives each the candidate that minimises the variance of the
-//! Laplacian of the synthesised texture, holding the other blocks fixed; a pass visits every
+//! (i) scores candidates with the spatial-proximity term β·(|x − x₀| + |y − y₀|) (the paper's
+//! Eq. 11–12) and keeps the set Ω of those below the best's score plus ΔE_max (Eq. 13; done by
+//! the encoder, see [`EncoderConfig`](crate::fractal_coding::encoder::EncoderConfig)), then
+//! (ii) visits the texels one block at a time and gives each the candidate of Ω that minimises
+//! the variance of the Laplacian of the synthesised texture (Eq. 14–15), holding the other
+//! blocks fixed, with the candidate's own offset (Eq. 4 for that block); a pass visits every
 //! texel once, in raster order.
 //!
 //! The synthesised texture is the factor-1 decoding T₁ (the source-resolution synthesis from R

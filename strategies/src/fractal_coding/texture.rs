@@ -266,6 +266,54 @@ impl Texture {
         Texture::new(w, h, c, data)
     }
 
+    /// The reduced texture by OpenCV's `pyrDown`: the 5×5 binomial filter ([1 4 6 4 1] / 16
+    /// along each axis, borders reflected without repeating the edge texel), sampled at the
+    /// even texels and rounded to whole grey levels. An alternative to the box filter of
+    /// [`Texture::reduce`] for measuring how much the choice of downsampler matters (the paper
+    /// only says "a standard downsampling algorithm"). Needs even sides of at least 4.
+    pub fn reduce_binomial(&self) -> Result<Texture> {
+        if !self.width.is_multiple_of(2)
+            || !self.height.is_multiple_of(2)
+            || self.width < 4
+            || self.height < 4
+        {
+            return Err(Error::InvalidInput(format!(
+                "the binomial reduction halves each side and needs even sides of at least 4, got {}×{}",
+                self.width, self.height
+            )));
+        }
+        const K: [f32; 5] = [1.0, 4.0, 6.0, 4.0, 1.0];
+        let reflect = |i: isize, n: usize| -> usize {
+            let n = n as isize;
+            let j = if i < 0 {
+                -i
+            } else if i >= n {
+                2 * n - 2 - i
+            } else {
+                i
+            };
+            j as usize
+        };
+        let (w, h, c) = (self.width / 2, self.height / 2, self.channels);
+        let mut data = Vec::with_capacity(w * h * c);
+        for y in 0..h {
+            for x in 0..w {
+                for k in 0..c {
+                    let mut acc = 0.0f32;
+                    for (j, ky) in K.iter().enumerate() {
+                        let sy = reflect(2 * y as isize + j as isize - 2, self.height);
+                        for (i, kx) in K.iter().enumerate() {
+                            let sx = reflect(2 * x as isize + i as isize - 2, self.width);
+                            acc += ky * kx * self.get(sx, sy, k);
+                        }
+                    }
+                    data.push((acc / 256.0).round());
+                }
+            }
+        }
+        Texture::new(w, h, c, data)
+    }
+
     /// Rec. 709 luma of an RGB texture (a grey texture is returned as is).
     pub fn to_grey(&self) -> Texture {
         if self.channels == 1 {
@@ -329,6 +377,48 @@ mod tests {
         assert_eq!(t.reduce().unwrap().data(), &[1.0]); // 0.75 rounds to 1
         let odd = Texture::new(3, 2, 1, vec![0.0; 6]).unwrap();
         assert!(odd.reduce().is_err());
+    }
+
+    #[test]
+    fn the_binomial_reduction_is_pyrdown() {
+        // A constant stays constant; an impulse of 256 at (2, 2) spreads with the 5×5 binomial
+        // weights: 6·6 at the sample on it, 1·6 twice (once reflected) one sample over, 1·1
+        // two texels over on both axes, nothing beyond.
+        let flat = Texture::from_fn(8, 6, 1, |_, _, _| 77.0).unwrap();
+        assert!(
+            flat.reduce_binomial()
+                .unwrap()
+                .data()
+                .iter()
+                .all(|&v| v == 77.0)
+        );
+        let imp = Texture::from_fn(
+            8,
+            8,
+            1,
+            |x, y, _| if (x, y) == (2, 2) { 256.0 } else { 0.0 },
+        )
+        .unwrap();
+        let r = imp.reduce_binomial().unwrap();
+        assert_eq!(r.get(1, 1, 0), 36.0);
+        assert_eq!(r.get(0, 1, 0), 12.0);
+        assert_eq!(r.get(2, 2, 0), 1.0);
+        assert_eq!(r.get(3, 3, 0), 0.0);
+        // Reflect-101 border: an impulse at the edge texel 0 is counted once, at 6/16.
+        let edge = Texture::from_fn(
+            8,
+            8,
+            1,
+            |x, y, _| if (x, y) == (0, 0) { 256.0 } else { 0.0 },
+        )
+        .unwrap();
+        assert_eq!(edge.reduce_binomial().unwrap().get(0, 0, 0), 36.0);
+        assert!(
+            Texture::from_fn(6, 2, 1, |_, _, _| 0.0)
+                .unwrap()
+                .reduce_binomial()
+                .is_err()
+        );
     }
 
     #[test]

@@ -1,13 +1,18 @@
 //! `ifslab texture repro`: Kominami & Mukai's Table I, Fig. 4–6 and timing comparison on the
-//! project's textures, written as tables, figures and `results.json` into one folder.
+//! project's textures, for both presets (`paper`, `ifslab`), written as tables, figures and
+//! `results.json` into one folder.
 //!
-//! - Table I: PSNR of the 1× reconstruction from R (plain and refined code, in memory and
-//!   through the packed 8-bit files), against interpolating R back to the source size.
+//! - Table I: PSNR of the 1× reconstruction from R (plain and refined codes of both presets,
+//!   in memory and through the packed 8-bit files), against interpolating R back to the
+//!   source size; the paper's published numbers for its own textures beside them.
+//! - One choice at a time: 1× PSNR as each choice of one preset is switched to the other's
+//!   (matching criterion, search grid, window, distance centre, ΔE_max, cap, passes).
 //! - Hold-out: the half-size texture upsampled 2× (and the quarter-size 4×) against the real
 //!   full-size texture — a ground truth the paper's figures have no number for.
-//! - Fig. 4: 8× crops, bilinear / bicubic / Lanczos against ours (plain and refined).
-//! - Fig. 5: the same source region at 1× (texel replication), 2×, 4× and 8×.
-//! - Fig. 6: 8× crops after 0, 1, 2, 4, 8 refinement passes, and the objective per pass.
+//! - Fig. 4: 8× crops, bilinear / bicubic / Lanczos against both presets (plain and refined).
+//! - Fig. 5: the same source region at 1× (texel replication), 2×, 4× and 8× (default preset).
+//! - Fig. 6: 8× crops after 0, 1, 2, 3, 4, 8 refinement passes of each preset, and the
+//!   objective per pass.
 //! - Timing: decoding 8× against bilinear upsampling to the same size, per frame, on all
 //!   threads and on one.
 
@@ -16,9 +21,9 @@ use std::time::Instant;
 
 use anyhow::Context;
 use ifslab_strategies::fractal_coding::{
-    Candidates, EncoderConfig, Filter, FractalCode, RefineConfig, Texture, bilinear_into, decode,
-    decode_into, encode, laplacian_variance, load_dir, output_size, psnr, refine, save_dir,
-    upsample,
+    CoordStorage, EncodeStats, EncoderConfig, Filter, FractalCode, MAX_TOTAL_CANDIDATES, Matching,
+    Preset, Reduction, RefineConfig, SearchGrid, Texture, bilinear_into, decode, decode_into,
+    encode, laplacian_variance, load_dir, output_size, psnr, refine, save_dir, upsample,
 };
 use serde::Serialize;
 use serde_json::json;
@@ -37,35 +42,38 @@ pub struct Args {
     /// Only these textures (comma-separated names without .png).
     #[arg(long, value_delimiter = ',')]
     pub textures: Option<Vec<String>>,
-    /// Search window (the paper: 255).
-    #[arg(long, default_value_t = 255)]
-    pub window: u32,
-    /// β of the refined code's candidate search.
-    #[arg(long, default_value_t = super::REFINE_BETA)]
-    pub beta: f32,
-    /// ΔE_max of the refined code's candidate search.
-    #[arg(long, default_value_t = super::REFINE_DELTA_E_MAX)]
-    pub delta_e_max: f32,
-    /// Most candidates per texel for the refinement.
-    #[arg(long, default_value_t = super::REFINE_MAX_CANDIDATES)]
-    pub max_candidates: usize,
-    /// Refinement passes of the "refined" code (Fig. 6 shows 0, 1, 2, 4 and 8).
-    #[arg(long, default_value_t = 4)]
-    pub passes: usize,
     /// Repetitions of each timed decode (the median is reported).
     #[arg(long, default_value_t = 9)]
     pub timing_reps: usize,
-    /// Skip figures and timing (for parameter sweeps).
+    /// Skip figures and timing.
     #[arg(long)]
     pub tables_only: bool,
+    /// Skip the one-choice-at-a-time table (the longest part).
+    #[arg(long)]
+    pub skip_ablation: bool,
 }
 
-/// The row of Table I and the hold-out table for one texture and one code.
+/// The paper's Table I (PSNR of the 1× reconstruction, its own textures, not available to us).
+const PAPER_TABLE_I: [(&str, f64); 4] = [
+    ("sisalfloor", 23.3032),
+    ("leaf", 29.1015),
+    ("brickwall", 23.0404),
+    ("rotatetile", 34.4637),
+];
+/// The paper's §V: bilinear interpolation and LapSRN on sisalfloor at 1×.
+const PAPER_SISALFLOOR_BASELINES: [(&str, f64); 2] = [("bilinear", 28.46), ("LapSRN", 30.29)];
+
+/// One row of Table I and the hold-out table: one texture, one preset, plain or refined.
 #[derive(Serialize, Debug, Clone)]
 struct CodeRow {
-    label: String,
+    preset: Preset,
+    refined: bool,
+    encoder: EncoderConfig,
+    passes: usize,
+    coord_storage: CoordStorage,
     encode_seconds: f64,
     refine_seconds: f64,
+    stats: EncodeStats,
     mean_sse: f64,
     psnr_1x: f64,
     psnr_1x_packed: f64,
@@ -76,6 +84,16 @@ struct CodeRow {
     psnr_holdout_4x: f64,
 }
 
+impl CodeRow {
+    fn label(&self) -> String {
+        format!(
+            "{} ({})",
+            self.preset,
+            if self.refined { "refined" } else { "plain" }
+        )
+    }
+}
+
 #[derive(Serialize, Debug, Clone)]
 struct BaselineRow {
     filter: String,
@@ -83,6 +101,27 @@ struct BaselineRow {
     psnr_holdout_2x: f64,
     psnr_holdout_4x: f64,
     lapvar_8x: f64,
+}
+
+/// A setting of the one-choice-at-a-time table.
+#[derive(Serialize, Debug, Clone)]
+struct Variant {
+    group: &'static str,
+    label: String,
+    encoder: EncoderConfig,
+    passes: usize,
+}
+
+#[derive(Serialize, Debug, Clone)]
+struct VariantResult {
+    texture: String,
+    /// Why the setting could not be run (the encoder's refusal), if it could not.
+    refused: Option<String>,
+    psnr_1x: f64,
+    mean_sse: f64,
+    mean_candidates: f64,
+    most_candidates: usize,
+    seconds: f64,
 }
 
 #[derive(Serialize, Debug, Clone)]
@@ -98,6 +137,9 @@ struct TimingRow {
     image_crate_bilinear_ms: Option<f64>,
 }
 
+/// Pass counts shown in Fig. 6.
+const FIG6_PASSES: [usize; 6] = [0, 1, 2, 3, 4, 8];
+
 pub fn run(a: Args) -> anyhow::Result<()> {
     let t_all = Instant::now();
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
@@ -107,30 +149,18 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             .map(|s| s.to_string())
             .collect()
     });
-    let plain_cfg = EncoderConfig {
-        window: a.window,
-        ..EncoderConfig::default()
-    };
-    let cand_cfg = EncoderConfig {
-        window: a.window,
-        beta: a.beta,
-        delta_e_max: a.delta_e_max,
-        max_candidates: a.max_candidates,
-    };
-    cand_cfg.validate()?;
-    let fig6_passes: Vec<usize> = [0usize, 1, 2, 4, 8]
-        .into_iter()
-        .filter(|&p| p <= a.passes.max(8))
-        .collect();
-    let max_passes = a.passes.max(*fig6_passes.last().unwrap_or(&0));
+    let presets = [Preset::Paper, Preset::Ifslab];
+    let variants = ablation_variants();
 
     let mut results = serde_json::Map::new();
     let mut table1 = String::new();
     let mut holdout = String::new();
     let mut objective_series: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
     let mut timings: Vec<TimingRow> = Vec::new();
+    let mut ablation: Vec<Vec<VariantResult>> = vec![Vec::new(); variants.len()];
 
-    let pb = progress::bar(names.len() as u64, "textures");
+    let steps = names.len() * if a.skip_ablation { 1 } else { 2 };
+    let pb = progress::bar(steps as u64, "steps");
     for name in &names {
         let path = a.data.join(format!("{name}.png"));
         let src =
@@ -141,128 +171,136 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             src.height(),
             src.channels()
         ));
-
-        // Codes: plain, and refined snapshots after each pass count of Fig. 6.
-        let plain = encode(&src, &plain_cfg)?;
-        let cand = encode(&src, &cand_cfg)?;
-        let mut refined_code = cand.code.clone();
-        let mut snapshots: Vec<(usize, FractalCode)> = vec![(0, refined_code.clone())];
-        let mut objective = vec![laplacian_variance(&decode(&refined_code, 1)?)];
-        let mut refine_seconds = 0.0;
-        let mut refined_at_passes = None;
-        for p in 1..=max_passes {
-            let rep = refine(
-                &mut refined_code,
-                &cand.candidates,
-                &RefineConfig { passes: 1 },
-            )?;
-            refine_seconds += rep.seconds;
-            objective.push(*rep.objective.last().expect("one pass"));
-            if fig6_passes.contains(&p) {
-                snapshots.push((p, refined_code.clone()));
-            }
-            if p == a.passes {
-                refined_at_passes = Some((refined_code.clone(), refine_seconds));
-            }
-        }
-        let (refined, refined_secs) = refined_at_passes.unwrap_or((cand.code.clone(), 0.0));
-        pb.println(format!(
-            "   plain {:.2} s, candidates {:.2} s ({:.1}/texel), refinement {:.2} s for {max_passes} passes; objective {:?}",
-            plain.stats.seconds,
-            cand.stats.seconds,
-            cand.stats.mean_candidates,
-            refine_seconds,
-            objective
-                .iter()
-                .map(|v| format!("{v:.1}"))
-                .collect::<Vec<_>>()
-        ));
-        objective_series.push((
-            name.clone(),
-            objective
-                .iter()
-                .enumerate()
-                .map(|(i, &v)| (i as f64, v / objective[0]))
-                .collect(),
-        ));
-
-        // Hold-out sources: the texture halved (and quartered) by the same box filter.
         let half = src.reduce()?;
         let quarter = half.reduce()?;
-        let holdout_codes =
-            |cfg: &EncoderConfig, passes: usize| -> anyhow::Result<[FractalCode; 2]> {
-                let mut out = Vec::new();
-                for s in [&half, &quarter] {
-                    let e = encode(s, cfg)?;
-                    let mut code = e.code;
-                    if passes > 0 {
-                        refine(&mut code, &e.candidates, &RefineConfig { passes })?;
-                    }
-                    out.push(code);
-                }
-                Ok([out.remove(0), out.remove(0)])
-            };
-        let ho_plain = holdout_codes(&plain_cfg, 0)?;
-        let ho_ref = holdout_codes(&cand_cfg, a.passes)?;
 
         let mut rows = Vec::new();
-        for (label, code, enc_secs, ref_secs, sse, ho) in [
-            (
-                "fractal (plain)",
-                &plain.code,
-                plain.stats.seconds,
-                0.0,
-                plain.stats.mean_sse,
-                &ho_plain,
-            ),
-            (
-                "fractal (refined)",
-                &refined,
-                cand.stats.seconds,
-                refined_secs,
-                mean_sse_of(&refined, &cand.candidates),
-                &ho_ref,
-            ),
-        ] {
-            let rec = decode(code, 1)?;
-            let dir = a.out.join("codes").join(format!("{name}-{}", slug(label)));
-            let err = save_dir(code, &dir, json!({"texture": name, "label": label}))?;
-            let (packed, _) = load_dir(&dir)?;
-            let rec_packed = decode(&packed, 1)?;
-            if name != "brick" {
-                // Keep one example of the packed files in the results, not all of them.
-                std::fs::remove_dir_all(&dir).ok();
+        let mut codes: Vec<(Preset, bool, FractalCode)> = Vec::new();
+        let mut snapshots: Vec<(Preset, Vec<(usize, FractalCode)>)> = Vec::new();
+        let mut objectives = serde_json::Map::new();
+        for preset in presets {
+            for refined in [false, true] {
+                let cfg = preset.encoder(refined);
+                let passes = if refined { preset.refine().passes } else { 0 };
+                let enc = encode(&src, &cfg)?;
+                let mut code = enc.code.clone();
+                let mut refine_seconds = 0.0;
+                if refined {
+                    // One pass at a time, keeping the snapshots of Fig. 6; the code of the
+                    // preset's pass count is the "refined" row.
+                    let max_passes = passes.max(*FIG6_PASSES.last().expect("passes"));
+                    let mut snaps = vec![(0, code.clone())];
+                    let mut objective = vec![laplacian_variance(&decode(&code, 1)?)];
+                    let mut work = code.clone();
+                    for p in 1..=max_passes {
+                        let rep = refine(&mut work, &enc.candidates, &RefineConfig { passes: 1 })?;
+                        if p <= passes {
+                            refine_seconds += rep.seconds;
+                        }
+                        objective.push(*rep.objective.last().expect("one pass"));
+                        if FIG6_PASSES.contains(&p) {
+                            snaps.push((p, work.clone()));
+                        }
+                        if p == passes {
+                            code = work.clone();
+                        }
+                    }
+                    pb.println(format!(
+                        "   {preset}: Ω {:.1}/texel (most {}), encode {:.2} s; objective per pass {:?}",
+                        enc.stats.mean_candidates,
+                        enc.stats.most_candidates,
+                        enc.stats.seconds,
+                        objective
+                            .iter()
+                            .map(|v| format!("{v:.1}"))
+                            .collect::<Vec<_>>()
+                    ));
+                    objective_series.push((
+                        format!("{name} {preset}"),
+                        objective
+                            .iter()
+                            .enumerate()
+                            .map(|(i, &v)| (i as f64, v / objective[0]))
+                            .collect(),
+                    ));
+                    objectives.insert(preset.name().into(), json!(objective));
+                    snapshots.push((preset, snaps));
+                }
+                let storage = preset.coord_storage();
+                let rec = decode(&code, 1)?;
+                let label = format!(
+                    "{name}-{preset}-{}",
+                    if refined { "refined" } else { "plain" }
+                );
+                let dir = a.out.join("codes").join(&label);
+                let err = save_dir(
+                    &code,
+                    &dir,
+                    storage,
+                    json!({"texture": name, "preset": preset, "encoder": cfg, "passes": passes}),
+                )?;
+                let (packed, _) = load_dir(&dir)?;
+                anyhow::ensure!(
+                    packed.coords() == code.coords(),
+                    "the packed coordinates of {label} did not round-trip"
+                );
+                let rec_packed = decode(&packed, 1)?;
+                if name != "brick" {
+                    // Keep one example of the packed files in the results, not all of them.
+                    std::fs::remove_dir_all(&dir).ok();
+                }
+                let ho = holdout_psnr(&src, &half, &quarter, &cfg, passes)?;
+                rows.push(CodeRow {
+                    preset,
+                    refined,
+                    encoder: cfg.clone(),
+                    passes,
+                    coord_storage: storage,
+                    encode_seconds: enc.stats.seconds,
+                    refine_seconds,
+                    mean_sse: collage_sse(&src, &code),
+                    stats: enc.stats.clone(),
+                    psnr_1x: psnr(&rec, &src)?,
+                    psnr_1x_packed: psnr(&rec_packed, &src)?,
+                    offset_step: err.offset_step,
+                    objective_t1: laplacian_variance(&rec),
+                    lapvar_8x: laplacian_variance(&decode(&code, 8)?),
+                    psnr_holdout_2x: ho.0,
+                    psnr_holdout_4x: ho.1,
+                });
+                codes.push((preset, refined, code));
             }
-            let up8 = decode(code, 8)?;
-            rows.push(CodeRow {
-                label: label.into(),
-                encode_seconds: enc_secs,
-                refine_seconds: ref_secs,
-                mean_sse: sse,
-                psnr_1x: psnr(&rec, &src)?,
-                psnr_1x_packed: psnr(&rec_packed, &src)?,
-                offset_step: err.offset_step,
-                objective_t1: laplacian_variance(&rec),
-                lapvar_8x: laplacian_variance(&up8),
-                psnr_holdout_2x: psnr(&decode(&ho[0], 2)?, &src)?,
-                psnr_holdout_4x: psnr(&decode(&ho[1], 4)?, &src)?,
-            });
         }
+        let reduced = codes[0].2.reduced().clone();
         let mut base_rows = Vec::new();
         for f in [Filter::Bilinear, Filter::Bicubic, Filter::Lanczos] {
             base_rows.push(BaselineRow {
                 filter: f.name().into(),
-                psnr_1x_from_r: psnr(&upsample(plain.code.reduced(), 2, f)?, &src)?,
+                psnr_1x_from_r: psnr(&upsample(&reduced, 2, f)?, &src)?,
                 psnr_holdout_2x: psnr(&upsample(&half, 2, f)?, &src)?,
                 psnr_holdout_4x: psnr(&upsample(&quarter, 4, f)?, &src)?,
                 lapvar_8x: laplacian_variance(&upsample(&src, 8, f)?),
             });
         }
         append_tables(&mut table1, &mut holdout, name, &src, &rows, &base_rows);
+        for r in &rows {
+            pb.println(format!(
+                "   {:<18} 1× {:.2} dB (packed {:.2}), hold-out 2× {:.2} dB",
+                r.label(),
+                r.psnr_1x,
+                r.psnr_1x_packed,
+                r.psnr_holdout_2x
+            ));
+        }
 
         if !a.tables_only {
-            figures(&a.out, name, &src, &plain.code, &refined, &snapshots)?;
-            for row in timing(name, &src, &plain.code, a.timing_reps)? {
+            figures(&a.out, name, &src, &codes, &snapshots)?;
+            let default_plain = &codes
+                .iter()
+                .find(|(p, r, _)| *p == Preset::default() && !r)
+                .expect("both presets encoded")
+                .2;
+            for row in timing(name, &src, default_plain, a.timing_reps)? {
                 pb.println(format!(
                     "   timing ({} thread(s)): fractal {:.1} ms, bilinear {:.1} ms, ratio {:.2}",
                     row.threads, row.fractal_ms, row.bilinear_ms, row.ratio
@@ -270,17 +308,56 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 timings.push(row);
             }
         }
+        pb.inc(1);
+
+        if !a.skip_ablation {
+            for (v, out) in variants.iter().zip(ablation.iter_mut()) {
+                let t0 = Instant::now();
+                let enc = match encode(&src, &v.encoder) {
+                    Ok(e) => e,
+                    Err(e) => {
+                        pb.println(format!("   {} / {}: refused ({e})", v.group, v.label));
+                        out.push(VariantResult {
+                            texture: name.clone(),
+                            refused: Some(e.to_string()),
+                            psnr_1x: f64::NAN,
+                            mean_sse: f64::NAN,
+                            mean_candidates: f64::NAN,
+                            most_candidates: 0,
+                            seconds: t0.elapsed().as_secs_f64(),
+                        });
+                        continue;
+                    }
+                };
+                let mut code = enc.code;
+                if v.passes > 0 {
+                    refine(
+                        &mut code,
+                        &enc.candidates,
+                        &RefineConfig { passes: v.passes },
+                    )?;
+                }
+                out.push(VariantResult {
+                    texture: name.clone(),
+                    refused: None,
+                    psnr_1x: psnr(&decode(&code, 1)?, &src)?,
+                    mean_sse: collage_sse(&src, &code),
+                    mean_candidates: enc.stats.mean_candidates,
+                    most_candidates: enc.stats.most_candidates,
+                    seconds: t0.elapsed().as_secs_f64(),
+                });
+            }
+            pb.inc(1);
+        }
         results.insert(
             name.clone(),
             json!({
                 "size": [src.width(), src.height(), src.channels()],
                 "codes": rows,
                 "baselines": base_rows,
-                "objective_per_pass": objective,
-                "candidates_per_texel": cand.stats.mean_candidates,
+                "objective_per_pass": objectives,
             }),
         );
-        pb.inc(1);
     }
     pb.finish_and_clear();
 
@@ -301,42 +378,211 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             false,
         )?;
     }
+    let ablation_md = if a.skip_ablation {
+        String::from("(skipped)\n")
+    } else {
+        ablation_table(&names, &variants, &ablation)
+    };
     let timing_md = timing_table(&timings);
     let config = json!({
         "command": std::env::args().collect::<Vec<_>>().join(" "),
-        "window": a.window,
-        "refine": {"beta": a.beta, "delta_e_max": a.delta_e_max,
-                   "max_candidates": a.max_candidates, "passes": a.passes},
+        "presets": presets.iter().map(|p| json!({
+            "preset": p,
+            "encoder_refined": p.encoder(true),
+            "refine": p.refine(),
+            "coord_storage": p.coord_storage(),
+        })).collect::<Vec<_>>(),
+        "default_preset": Preset::default(),
         "threads": rayon::current_num_threads(),
         "cpu": cpu_name(),
         "seconds": t_all.elapsed().as_secs_f64(),
     });
     results.insert("config".into(), config.clone());
     results.insert("timing".into(), serde_json::to_value(&timings)?);
+    results.insert(
+        "one_choice_at_a_time".into(),
+        json!(
+            variants
+                .iter()
+                .zip(&ablation)
+                .map(|(v, r)| json!({"variant": v, "results": r}))
+                .collect::<Vec<_>>()
+        ),
+    );
     write(
         &a.out.join("results.json"),
         &serde_json::to_vec_pretty(&results)?,
     )?;
     let md = format!(
-        "# Results (written by `ifslab texture repro`)\n\nConfig: `{}`\n\n## Table I — PSNR (dB) of the 1× reconstruction\n\n{table1}\n## Hold-out upsampling — PSNR (dB) against the real full-size texture\n\n{holdout}\n## Timing — 8× upsampling, per frame (median of {} runs)\n\n{timing_md}\nTotal run time {:.0} s.\n",
+        "# Results (written by `ifslab texture repro`)\n\nConfig: `{}`\n\n\
+         ## Table I — PSNR (dB) of the 1× reconstruction\n\n{table1}\n\
+         The paper's Table I (its own colour textures, which are not available to us):\n\n{}\n\
+         ## One choice at a time — PSNR (dB) of the 1× reconstruction\n\n{ablation_md}\n\
+         ## Hold-out upsampling — PSNR (dB) against the real full-size texture\n\n{holdout}\n\
+         ## Timing — 8× upsampling ({} preset, plain code), per frame (median of {} runs)\n\n{timing_md}\n\
+         Total run time {:.0} s.\n",
         serde_json::to_string(&config)?,
+        paper_table(),
+        Preset::default(),
         a.timing_reps,
         t_all.elapsed().as_secs_f64()
     );
     write(&a.out.join("tables.md"), md.as_bytes())?;
-    eprintln!("{}", md);
+    eprintln!("{md}");
     Ok(())
 }
 
-fn slug(label: &str) -> String {
-    label
-        .chars()
-        .filter_map(|c| match c {
-            'a'..='z' => Some(c),
-            ' ' => Some('-'),
-            _ => None,
-        })
-        .collect()
+/// The settings of the one-choice-at-a-time table: the plain encoder's matching × grid (and
+/// a few windows), then each refined preset with one of its choices switched to the other's.
+fn ablation_variants() -> Vec<Variant> {
+    let mut v = Vec::new();
+    let plain = Preset::Ifslab.encoder(false);
+    for grid in SearchGrid::ALL {
+        for matching in Matching::ALL {
+            v.push(Variant {
+                group: "plain",
+                label: format!("{matching}, {grid}"),
+                encoder: EncoderConfig {
+                    matching: *matching,
+                    grid: *grid,
+                    ..plain.clone()
+                },
+                passes: 0,
+            });
+        }
+    }
+    for (matching, grid) in [
+        (Matching::MeanRemoved, SearchGrid::All),
+        (Matching::Raw, SearchGrid::Even),
+    ] {
+        v.push(Variant {
+            group: "plain",
+            label: format!("{matching}, {grid}, binomial R"),
+            encoder: EncoderConfig {
+                matching,
+                grid,
+                reduction: Reduction::Binomial,
+                ..plain.clone()
+            },
+            passes: 0,
+        });
+    }
+    for window in [8u32, 32] {
+        for (matching, grid) in [
+            (Matching::MeanRemoved, SearchGrid::All),
+            (Matching::Raw, SearchGrid::Even),
+        ] {
+            v.push(Variant {
+                group: "plain",
+                label: format!("{matching}, {grid}, window {window}"),
+                encoder: EncoderConfig {
+                    matching,
+                    grid,
+                    window,
+                    ..plain.clone()
+                },
+                passes: 0,
+            });
+        }
+    }
+    for (from, to) in [
+        (Preset::Paper, Preset::Ifslab),
+        (Preset::Ifslab, Preset::Paper),
+    ] {
+        let group = match from {
+            Preset::Paper => "refined, from paper",
+            Preset::Ifslab => "refined, from ifslab",
+        };
+        let (f, t) = (from.encoder(true), to.encoder(true));
+        let (fp, tp) = (from.refine().passes, to.refine().passes);
+        let with = |label: String, encoder: EncoderConfig, passes: usize| Variant {
+            group,
+            label,
+            encoder,
+            passes,
+        };
+        v.push(with(format!("{from} (refined)"), f.clone(), fp));
+        v.push(with(
+            format!("distance {}", t.distance),
+            EncoderConfig {
+                distance: t.distance,
+                ..f.clone()
+            },
+            fp,
+        ));
+        v.push(with(
+            format!("ΔE_max {}", t.delta_e_max),
+            EncoderConfig {
+                delta_e_max: t.delta_e_max,
+                ..f.clone()
+            },
+            fp,
+        ));
+        v.push(with(
+            format!("cap {}", cap_name(t.max_candidates)),
+            EncoderConfig {
+                max_candidates: t.max_candidates,
+                ..f.clone()
+            },
+            fp,
+        ));
+        v.push(with(format!("{tp} passes"), f.clone(), tp));
+        v.push(with(
+            format!("matching {}", t.matching),
+            EncoderConfig {
+                matching: t.matching,
+                ..f.clone()
+            },
+            fp,
+        ));
+        v.push(with(
+            format!("grid {}", t.grid),
+            EncoderConfig {
+                grid: t.grid,
+                ..f.clone()
+            },
+            fp,
+        ));
+    }
+    debug_assert!(v.iter().all(|x| x.encoder.validate().is_ok()));
+    v
+}
+
+fn cap_name(c: Option<usize>) -> String {
+    c.map_or("all".into(), |n| n.to_string())
+}
+
+/// PSNR of the half-size texture upsampled 2× and the quarter-size one 4×, against `src`.
+fn holdout_psnr(
+    src: &Texture,
+    half: &Texture,
+    quarter: &Texture,
+    cfg: &EncoderConfig,
+    passes: usize,
+) -> anyhow::Result<(f64, f64)> {
+    let mut out = [0.0; 2];
+    for (i, (s, factor)) in [(half, 2u32), (quarter, 4)].into_iter().enumerate() {
+        let e = encode(s, cfg)?;
+        let mut code = e.code;
+        if passes > 0 {
+            refine(&mut code, &e.candidates, &RefineConfig { passes })?;
+        }
+        out[i] = psnr(&decode(&code, factor)?, src)?;
+    }
+    Ok((out[0], out[1]))
+}
+
+/// Mean collage SSE per range block of a code: ‖S(2c + δ) − R(C(c) + δ) − O(c)‖² (the error
+/// of the 1× reconstruction before rounding).
+fn collage_sse(src: &Texture, code: &FractalCode) -> f64 {
+    let rec = decode(code, 1).expect("a 1× decode of a valid code");
+    let sse: f64 = rec
+        .data()
+        .iter()
+        .zip(src.data())
+        .map(|(a, b)| f64::from(a - b).powi(2))
+        .sum();
+    sse / (code.width() * code.height()) as f64
 }
 
 fn write(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
@@ -355,22 +601,15 @@ fn cpu_name() -> String {
         .unwrap_or_else(|| "unknown".into())
 }
 
-/// Mean collage SSE of a code whose texels each use one of their candidates.
-fn mean_sse_of(code: &FractalCode, cands: &Candidates) -> f64 {
-    let ch = code.channels();
-    let mut sum = 0.0;
-    for c in 0..cands.texels() {
-        let k = code.coords()[c];
-        let off = &code.offsets()[c * ch..(c + 1) * ch];
-        for i in 0..cands.count(c) {
-            let (kk, o, sse, _) = cands.get(c, i);
-            if kk == k && o == off {
-                sum += f64::from(sse);
-                break;
-            }
-        }
+fn paper_table() -> String {
+    let mut s = String::from("| texture (paper) | PSNR 1× |\n|---|---|\n");
+    for (n, v) in PAPER_TABLE_I {
+        s.push_str(&format!("| {n} | {v:.2} |\n"));
     }
-    sum / cands.texels() as f64
+    for (n, v) in PAPER_SISALFLOOR_BASELINES {
+        s.push_str(&format!("| sisalfloor, {n} | {v:.2} |\n"));
+    }
+    s
 }
 
 fn append_tables(
@@ -383,7 +622,7 @@ fn append_tables(
 ) {
     if table1.is_empty() {
         table1.push_str(
-            "| texture | method | PSNR 1× | PSNR 1× (packed 8-bit) | offset step | mean collage SSE | encode s | refine s |\n|---|---|---|---|---|---|---|---|\n",
+            "| texture | method | PSNR 1× | PSNR 1× (packed 8-bit) | offset step | mean collage SSE | Ω per texel (mean / most) | encode s | refine s |\n|---|---|---|---|---|---|---|---|---|\n",
         );
         holdout.push_str(
             "| texture | method | ½ size → 2× | ¼ size → 4× | var. of Laplacian at 8× |\n|---|---|---|---|---|\n",
@@ -396,23 +635,34 @@ fn append_tables(
     );
     for r in rows {
         table1.push_str(&format!(
-            "| {size} | {} | {:.2} | {:.2} | {} | {:.2} | {:.2} | {:.2} |\n",
-            r.label,
+            "| {size} | {} | {:.2} | {:.2} | {} | {:.2} | {} | {:.2} | {:.2} |\n",
+            r.label(),
             r.psnr_1x,
             r.psnr_1x_packed,
             r.offset_step,
             r.mean_sse,
+            if r.refined {
+                format!(
+                    "{:.1} / {}",
+                    r.stats.mean_candidates, r.stats.most_candidates
+                )
+            } else {
+                "—".into()
+            },
             r.encode_seconds,
             r.refine_seconds
         ));
         holdout.push_str(&format!(
             "| {size} | {} | {:.2} | {:.2} | {:.1} |\n",
-            r.label, r.psnr_holdout_2x, r.psnr_holdout_4x, r.lapvar_8x
+            r.label(),
+            r.psnr_holdout_2x,
+            r.psnr_holdout_4x,
+            r.lapvar_8x
         ));
     }
     for b in base {
         table1.push_str(&format!(
-            "| {size} | R upsampled 2×, {} | {:.2} | — | — | — | — | — |\n",
+            "| {size} | R upsampled 2×, {} | {:.2} | — | — | — | — | — | — |\n",
             b.filter, b.psnr_1x_from_r
         ));
         holdout.push_str(&format!(
@@ -420,6 +670,41 @@ fn append_tables(
             b.filter, b.psnr_holdout_2x, b.psnr_holdout_4x, b.lapvar_8x
         ));
     }
+}
+
+fn ablation_table(names: &[String], variants: &[Variant], res: &[Vec<VariantResult>]) -> String {
+    let mut s = String::from("| group | setting |");
+    for n in names {
+        s.push_str(&format!(" {n} |"));
+    }
+    s.push_str(" mean Ω per texel (first texture) | s (first texture) |\n|---|---|");
+    for _ in names {
+        s.push_str("---|");
+    }
+    s.push_str("---|---|\n");
+    for (v, r) in variants.iter().zip(res) {
+        s.push_str(&format!("| {} | {} |", v.group, v.label));
+        for x in r {
+            if x.refused.is_some() {
+                s.push_str(" Ω too large¹ |");
+            } else {
+                s.push_str(&format!(" {:.2} |", x.psnr_1x));
+            }
+        }
+        let first = r.first().filter(|x| x.refused.is_none());
+        s.push_str(&format!(
+            " {} | {} |\n",
+            first.map_or("—".into(), |x| format!("{:.1}", x.mean_candidates)),
+            first.map_or("—".into(), |x| format!("{:.1}", x.seconds)),
+        ));
+    }
+    if res.iter().flatten().any(|x| x.refused.is_some()) {
+        s.push_str(&format!(
+            "\n¹ The candidate sets would hold more than {MAX_TOTAL_CANDIDATES} candidates; the \
+             encoder refuses rather than exhaust memory.\n"
+        ));
+    }
+    s
 }
 
 /// A row of panels of equal height with 4-texel white gaps (grey if every panel is grey).
@@ -457,23 +742,29 @@ fn figures(
     out: &Path,
     name: &str,
     src: &Texture,
-    plain: &FractalCode,
-    refined: &FractalCode,
-    snapshots: &[(usize, FractalCode)],
+    codes: &[(Preset, bool, FractalCode)],
+    snapshots: &[(Preset, Vec<(usize, FractalCode)>)],
 ) -> anyhow::Result<()> {
     let (x0, y0, side) = region(src);
     let crop8 = |t: &Texture| t.crop(8 * x0, 8 * y0, 8 * side, 8 * side);
-    // Fig. 5: 1× (texel replication), 2×, 4×, 8× of the same region.
+    let code = |p: Preset, refined: bool| {
+        &codes
+            .iter()
+            .find(|(q, r, _)| *q == p && *r == refined)
+            .expect("every preset and variant encoded")
+            .2
+    };
+    // Fig. 5: 1× (texel replication), 2×, 4×, 8× of the same region, default preset refined.
     let mut panels = vec![src.crop(x0, y0, side, side)?.scale_nearest(8)?];
     for f in [2usize, 4, 8] {
-        let up = decode(plain, f as u32)?;
+        let up = decode(code(Preset::default(), true), f as u32)?;
         panels.push(
             up.crop(f * x0, f * y0, f * side, f * side)?
                 .scale_nearest(8 / f)?,
         );
     }
     montage(&panels)?.save_png(&out.join(format!("fig5_{name}.png")))?;
-    // Fig. 4: bilinear, bicubic, Lanczos, ours plain, ours refined at 8×.
+    // Fig. 4: bilinear, bicubic, Lanczos, then paper plain / refined, ifslab plain / refined.
     let mut panels = Vec::new();
     for f in [Filter::Bilinear, Filter::Bicubic, Filter::Lanczos] {
         // Interpolate a margin around the region so its border sees real neighbours.
@@ -485,15 +776,20 @@ fn figures(
         let up = upsample(&src.crop(mx, my, mw, mh)?, 8, f)?;
         panels.push(up.crop(8 * (x0 - mx), 8 * (y0 - my), 8 * side, 8 * side)?);
     }
-    panels.push(crop8(&decode(plain, 8)?)?);
-    panels.push(crop8(&decode(refined, 8)?)?);
+    for p in [Preset::Paper, Preset::Ifslab] {
+        for refined in [false, true] {
+            panels.push(crop8(&decode(code(p, refined), 8)?)?);
+        }
+    }
     montage(&panels)?.save_png(&out.join(format!("fig4_{name}.png")))?;
-    // Fig. 6: ours at 8× after 0, 1, 2, 4, 8 refinement passes.
-    let panels: Vec<Texture> = snapshots
-        .iter()
-        .map(|(_, c)| decode(c, 8).and_then(|t| crop8(&t)))
-        .collect::<Result<_, _>>()?;
-    montage(&panels)?.save_png(&out.join(format!("fig6_{name}.png")))?;
+    // Fig. 6: each preset at 8× after 0, 1, 2, 3, 4, 8 refinement passes.
+    for (p, snaps) in snapshots {
+        let panels: Vec<Texture> = snaps
+            .iter()
+            .map(|(_, c)| decode(c, 8).and_then(|t| crop8(&t)))
+            .collect::<Result<_, _>>()?;
+        montage(&panels)?.save_png(&out.join(format!("fig6_{name}_{p}.png")))?;
+    }
     Ok(())
 }
 
