@@ -4,10 +4,9 @@
 //! Text files hold one point per line, numbers separated by commas, semicolons, tabs or
 //! spaces; blank lines and lines starting with `#` are skipped, and a first line that is
 //! not numeric is taken as a header. `.npy` files hold a 1-D (N points in 1-D) or 2-D
-//! (N×H) array of floats or integers, little- or big-endian, C or Fortran order; the
-//! reader is written here (the format is a short ASCII header and a raw buffer) rather
-//! than pulling in `ndarray-npy`, which would bring a second array stack into a crate
-//! built on nalgebra.
+//! (N×H) array of floats or integers, little- or big-endian, C or Fortran order, read and
+//! written with `npyz` (which, unlike `ndarray-npy`, brings no second array stack into a
+//! crate built on nalgebra).
 //!
 //! Every malformed input gets an error naming the file, the line (or row) and what to fix:
 //! a number that does not parse, rows of different dimensions, NaN or infinite values.
@@ -18,7 +17,6 @@
 use std::path::Path;
 
 use rand::seq::SliceRandom;
-use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 
@@ -227,27 +225,21 @@ impl PointSet {
         s
     }
 
-    /// The points as a little-endian `float64` `.npy` file (format version 1.0).
+    /// The points as a little-endian `float64` `.npy` file of shape (N, H).
     pub fn to_npy(&self) -> Vec<u8> {
-        let dict = format!(
-            "{{'descr': '<f8', 'fortran_order': False, 'shape': ({}, {}), }}",
-            self.len(),
-            self.dim
-        );
-        // Magic (6) + version (2) + header length (2) + header, padded to 64 bytes with '\n' last.
-        let unpadded = 10 + dict.len() + 1;
-        let pad = (64 - unpadded % 64) % 64;
-        let mut header = dict.into_bytes();
-        header.extend(std::iter::repeat_n(b' ', pad));
-        header.push(b'\n');
-        let mut out = Vec::with_capacity(10 + header.len() + self.data.len() * 8);
-        out.extend_from_slice(NPY_MAGIC);
-        out.extend_from_slice(&[1, 0]);
-        out.extend_from_slice(&(header.len() as u16).to_le_bytes());
-        out.extend_from_slice(&header);
-        for v in &self.data {
-            out.extend_from_slice(&v.to_le_bytes());
-        }
+        use npyz::WriterBuilder;
+        let mut out = Vec::with_capacity(128 + self.data.len() * 8);
+        let shape = [self.len() as u64, self.dim as u64];
+        // Writing f64s into memory cannot fail.
+        let mut w = npyz::WriteOptions::new()
+            .default_dtype()
+            .shape(&shape)
+            .writer(&mut out)
+            .begin_nd()
+            .expect("writing a .npy header into memory");
+        w.extend(self.data.iter().copied())
+            .expect("writing .npy data into memory");
+        w.finish().expect("writing .npy data into memory");
         out
     }
 
@@ -343,106 +335,18 @@ pub fn parse_text(text: &str, origin: &Path) -> Result<PointSet> {
 
 const NPY_MAGIC: &[u8] = b"\x93NUMPY";
 
-/// Element types the `.npy` reader understands.
-#[derive(Clone, Copy, Debug)]
-enum NpyType {
-    F64,
-    F32,
-    I64,
-    I32,
-    I16,
-    I8,
-    U64,
-    U32,
-    U16,
-    U8,
-}
-
-impl NpyType {
-    fn size(self) -> usize {
-        match self {
-            NpyType::F64 | NpyType::I64 | NpyType::U64 => 8,
-            NpyType::F32 | NpyType::I32 | NpyType::U32 => 4,
-            NpyType::I16 | NpyType::U16 => 2,
-            NpyType::I8 | NpyType::U8 => 1,
-        }
-    }
-
-    fn read(self, b: &[u8], big: bool) -> f64 {
-        macro_rules! rd {
-            ($t:ty, $n:expr) => {{
-                let mut a = [0u8; $n];
-                a.copy_from_slice(&b[..$n]);
-                if big {
-                    <$t>::from_be_bytes(a) as f64
-                } else {
-                    <$t>::from_le_bytes(a) as f64
-                }
-            }};
-        }
-        match self {
-            NpyType::F64 => rd!(f64, 8),
-            NpyType::F32 => rd!(f32, 4),
-            NpyType::I64 => rd!(i64, 8),
-            NpyType::I32 => rd!(i32, 4),
-            NpyType::I16 => rd!(i16, 2),
-            NpyType::I8 => b[0] as i8 as f64,
-            NpyType::U64 => rd!(u64, 8),
-            NpyType::U32 => rd!(u32, 4),
-            NpyType::U16 => rd!(u16, 2),
-            NpyType::U8 => b[0] as f64,
-        }
-    }
-}
-
-/// Parses a `.npy` buffer (format versions 1, 2 and 3); `origin` names the file in errors.
+/// Parses a `.npy` buffer (any format version `npyz` reads); `origin` names the file in errors.
 pub fn parse_npy(bytes: &[u8], origin: &Path) -> Result<PointSet> {
+    use npyz::{DType, Order, TypeChar};
     let bad = |m: String| Error::file(origin, m);
-    if !bytes.starts_with(NPY_MAGIC) || bytes.len() < 10 {
+    if !bytes.starts_with(NPY_MAGIC) {
         return Err(bad(
             "not a NumPy .npy file (missing the \\x93NUMPY magic bytes)".into(),
         ));
     }
-    let major = bytes[6];
-    let (hlen, start) = match major {
-        1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10),
-        2 | 3 => {
-            if bytes.len() < 12 {
-                return Err(bad("truncated .npy header".into()));
-            }
-            (
-                u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize,
-                12,
-            )
-        }
-        v => {
-            return Err(bad(format!(
-                ".npy format version {v} is not supported (1–3 are)"
-            )));
-        }
-    };
-    let header = bytes
-        .get(start..start + hlen)
-        .ok_or_else(|| bad("truncated .npy header".into()))?;
-    let header = std::str::from_utf8(header).map_err(|_| bad(".npy header is not text".into()))?;
-    let descr = dict_value(header, "descr")
-        .ok_or_else(|| bad(format!("header has no 'descr': {header}")))?;
-    let descr = descr.trim().trim_matches(|c| c == '\'' || c == '"');
-    let fortran = dict_value(header, "fortran_order")
-        .map(|v| v.trim().starts_with("True"))
-        .unwrap_or(false);
-    let shape_txt = dict_value(header, "shape")
-        .ok_or_else(|| bad(format!("header has no 'shape': {header}")))?;
-    let shape: Vec<usize> = shape_txt
-        .trim()
-        .trim_start_matches('(')
-        .trim_end_matches(')')
-        .split(',')
-        .map(str::trim)
-        .filter(|s| !s.is_empty())
-        .map(|s| s.parse::<usize>())
-        .collect::<std::result::Result<_, _>>()
-        .map_err(|_| bad(format!("cannot read the shape {shape_txt}")))?;
+    let file =
+        npyz::NpyFile::new(bytes).map_err(|e| bad(format!("cannot read the .npy header: {e}")))?;
+    let shape: Vec<usize> = file.shape().iter().map(|&d| d as usize).collect();
     let (n, h) = match shape.as_slice() {
         [n] => (*n, 1),
         [n, h] => (*n, *h),
@@ -452,51 +356,66 @@ pub fn parse_npy(bytes: &[u8], origin: &Path) -> Result<PointSet> {
             )));
         }
     };
-    let (big, code) = match descr.as_bytes().first() {
-        Some(b'<') | Some(b'|') | Some(b'=') => (false, &descr[1..]),
-        Some(b'>') => (true, &descr[1..]),
-        _ => (false, descr),
-    };
-    let ty = match code {
-        "f8" => NpyType::F64,
-        "f4" => NpyType::F32,
-        "i8" => NpyType::I64,
-        "i4" => NpyType::I32,
-        "i2" => NpyType::I16,
-        "i1" => NpyType::I8,
-        "u8" => NpyType::U64,
-        "u4" => NpyType::U32,
-        "u2" => NpyType::U16,
-        "u1" | "b1" => NpyType::U8,
-        other => {
-            return Err(bad(format!(
-                "element type `{other}` is not supported; save the array as float64 (`arr.astype('f8')`)"
-            )));
-        }
-    };
-    let body = &bytes[start + hlen..];
-    let need = n
-        .checked_mul(h)
-        .and_then(|c| c.checked_mul(ty.size()))
-        .ok_or_else(|| bad("array shape overflows".into()))?;
-    if body.len() < need {
-        return Err(bad(format!(
-            "data is truncated: the shape needs {need} bytes, the file has {}",
-            body.len()
-        )));
-    }
     if n == 0 || h == 0 {
         return Err(bad(format!("array is empty (shape {shape:?})")));
     }
-    let sz = ty.size();
-    let mut data = vec![0.0; n * h];
-    data.par_chunks_mut(h).enumerate().for_each(|(i, row)| {
-        for (j, v) in row.iter_mut().enumerate() {
-            // C order: element (i, j) at i·h + j; Fortran order: at j·n + i.
-            let e = if fortran { j * n + i } else { i * h + j };
-            *v = ty.read(&body[e * sz..(e + 1) * sz], big);
-        }
-    });
+    let fortran = file.order() == Order::Fortran;
+    let unsupported = |t: &dyn std::fmt::Display| {
+        bad(format!(
+            "element type `{t}` is not supported; save the array as float64 (`arr.astype('f8')`)"
+        ))
+    };
+    let ts = match file.dtype() {
+        DType::Plain(ts) => ts,
+        other => return Err(unsupported(&other.descr())),
+    };
+    let truncated = |e: std::io::Error| {
+        bad(format!(
+            "data is truncated or unreadable ({e}); the shape needs {} values",
+            n * h
+        ))
+    };
+    macro_rules! read_as {
+        ($t:ty) => {
+            file.into_vec::<$t>()
+                .map_err(truncated)?
+                .into_iter()
+                .map(|v| v as f64)
+                .collect::<Vec<f64>>()
+        };
+    }
+    let flat: Vec<f64> = match (ts.type_char(), ts.size_field()) {
+        (TypeChar::Float, 8) => read_as!(f64),
+        (TypeChar::Float, 4) => read_as!(f32),
+        (TypeChar::Int, 8) => read_as!(i64),
+        (TypeChar::Int, 4) => read_as!(i32),
+        (TypeChar::Int, 2) => read_as!(i16),
+        (TypeChar::Int, 1) => read_as!(i8),
+        (TypeChar::Uint, 8) => read_as!(u64),
+        (TypeChar::Uint, 4) => read_as!(u32),
+        (TypeChar::Uint, 2) => read_as!(u16),
+        (TypeChar::Uint, 1) => read_as!(u8),
+        (TypeChar::Bool, 1) => file
+            .into_vec::<bool>()
+            .map_err(truncated)?
+            .into_iter()
+            .map(f64::from)
+            .collect(),
+        _ => return Err(unsupported(&ts)),
+    };
+    if flat.len() < n * h {
+        return Err(bad(format!(
+            "data is truncated: the shape needs {} values, the file has {}",
+            n * h,
+            flat.len()
+        )));
+    }
+    let data: Vec<f64> = if fortran {
+        // Fortran order: element (i, j) at j·n + i.
+        (0..n * h).map(|e| flat[(e % h) * n + e / h]).collect()
+    } else {
+        flat
+    };
     if let Some(pos) = data.iter().position(|v| !v.is_finite()) {
         return Err(bad(format!(
             "row {} has a non-finite coordinate ({}); remove or repair rows with NaN or infinite values",
@@ -505,25 +424,6 @@ pub fn parse_npy(bytes: &[u8], origin: &Path) -> Result<PointSet> {
         )));
     }
     PointSet::new(h, data).map_err(|e| Error::file(origin, e))
-}
-
-/// The text of `key`'s value in a Python dict literal, up to the next top-level comma.
-fn dict_value<'a>(header: &'a str, key: &str) -> Option<&'a str> {
-    let pat1 = format!("'{key}'");
-    let pat2 = format!("\"{key}\"");
-    let at = header.find(&pat1).or_else(|| header.find(&pat2))?;
-    let rest = &header[at + key.len() + 2..];
-    let rest = rest.trim_start().strip_prefix(':')?.trim_start();
-    let mut depth = 0i32;
-    for (i, c) in rest.char_indices() {
-        match c {
-            '(' | '[' => depth += 1,
-            ')' | ']' => depth -= 1,
-            ',' | '}' if depth == 0 => return Some(&rest[..i]),
-            _ => {}
-        }
-    }
-    Some(rest)
 }
 
 #[cfg(test)]
@@ -554,6 +454,17 @@ mod tests {
         }
         let f = parse_npy(&b, Path::new("f.npy")).unwrap();
         assert_eq!(f.as_slice(), &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0]);
+        // Big-endian float32, C order, version 2.0 header.
+        let dict = "{'descr': '>f4', 'fortran_order': False, 'shape': (3, 1), }";
+        let mut b = NPY_MAGIC.to_vec();
+        b.extend_from_slice(&[2, 0]);
+        b.extend_from_slice(&(dict.len() as u32).to_le_bytes());
+        b.extend_from_slice(dict.as_bytes());
+        for v in [0.5f32, -1.25, 3.0] {
+            b.extend_from_slice(&v.to_be_bytes());
+        }
+        let g = parse_npy(&b, Path::new("g.npy")).unwrap();
+        assert_eq!((g.dim(), g.as_slice()), (1, &[0.5, -1.25, 3.0][..]));
     }
 
     #[test]
