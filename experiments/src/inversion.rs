@@ -174,7 +174,7 @@ pub fn run_and_report(cfg: &InversionConfig, dir: &Path, resume: bool) -> anyhow
         )
         .expect("valid template"),
     );
-    pb.set_prefix(cfg.strategy.name());
+    pb.set_prefix(cfg.strategy.name().to_owned());
     let started = Instant::now();
     let outcome = run_inversion(
         cfg,

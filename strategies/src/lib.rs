@@ -18,5 +18,6 @@ pub mod fractal_coding;
 pub mod hybrid;
 pub mod image;
 pub mod noisy;
+pub mod registry;
 
 pub use error::{Error, Result};

@@ -79,7 +79,7 @@ fn adam_on_the_naive_parameterisation_recovers_a_perturbed_code() {
     let mut cfg = base_config(
         size,
         150,
-        StrategyConfig::Adam(AdamConfig {
+        StrategyConfig::from(AdamConfig {
             lr: 5e-3,
             ..AdamConfig::default()
         }),
@@ -119,7 +119,7 @@ fn em_then_hybrid(code: &str, maps: usize, seed: u64, iterations: u64) -> (f64, 
     let mut cfg = base_config(
         size,
         iterations,
-        StrategyConfig::Hybrid(HybridConfig {
+        StrategyConfig::from(HybridConfig {
             anneal_every: 50,
             ..HybridConfig::from_good_start()
         }),
@@ -191,8 +191,8 @@ fn resume_is_bit_identical() {
     let size = 32;
     let t = target("sierpinski", size);
     let strategies = [
-        StrategyConfig::Adam(AdamConfig::default()),
-        StrategyConfig::Hybrid(HybridConfig {
+        StrategyConfig::from(AdamConfig::default()),
+        StrategyConfig::from(HybridConfig {
             anneal_every: 4,
             annealing: AnnealingConfig {
                 candidates: 2,
@@ -200,8 +200,8 @@ fn resume_is_bit_identical() {
             },
             ..HybridConfig::default()
         }),
-        StrategyConfig::Annealing(AnnealingConfig::default()),
-        StrategyConfig::Noisy(NoisyConfig::default()),
+        StrategyConfig::from(AnnealingConfig::default()),
+        StrategyConfig::from(NoisyConfig::default()),
     ];
     for strategy in strategies {
         let mut cfg = base_config(size, 20, strategy);
@@ -239,6 +239,20 @@ fn resume_is_bit_identical() {
             .map(|l| l.split(',').next().unwrap().parse().unwrap())
             .collect();
         assert_eq!(iters, (0..20).collect::<Vec<u64>>(), "{name}");
+        // The strategy's own statistics are columns of the log, filled where it reports them.
+        let header: Vec<&str> = log.lines().next().unwrap().split(',').collect();
+        for stat in ifslab_strategies::registry::stats(name).unwrap() {
+            let col = header
+                .iter()
+                .position(|h| h == stat)
+                .unwrap_or_else(|| panic!("{name}: no `{stat}` column in {header:?}"));
+            let reported = log
+                .lines()
+                .skip(1)
+                .filter(|l| l.split(',').nth(col).unwrap() != "NaN")
+                .count();
+            assert!(reported > 0, "{name}: `{stat}` never logged");
+        }
     }
 }
 
@@ -255,7 +269,7 @@ fn same_seed_same_code_with_any_thread_count() {
     let mut cfg = base_config(
         size,
         12,
-        StrategyConfig::Hybrid(HybridConfig {
+        StrategyConfig::from(HybridConfig {
             anneal_every: 4,
             annealing: AnnealingConfig {
                 candidates: 3,
@@ -302,7 +316,7 @@ fn sigma_schedule_renders_with_the_scheduled_sigma() {
 
     let size = 32;
     let t = target("sierpinski", size);
-    let mut cfg = base_config(size, 10, StrategyConfig::Adam(AdamConfig::default()));
+    let mut cfg = base_config(size, 10, StrategyConfig::from(AdamConfig::default()));
     cfg.generator.trajectories = 100;
     let maps = library::builtin("sierpinski").unwrap().affine2().unwrap();
     let theta = cfg.model.parameterisation.build().encode(&maps).unwrap();
@@ -349,7 +363,7 @@ fn end_to_end_gradient_matches_finite_differences_in_f32() {
 
     let size = 32;
     let t = target("sierpinski", size);
-    let mut cfg = base_config(size, 10, StrategyConfig::Adam(AdamConfig::default()));
+    let mut cfg = base_config(size, 10, StrategyConfig::from(AdamConfig::default()));
     cfg.generator.trajectories = 200;
     cfg.generator.length = 60;
     cfg.renderer.sigma = 1.5;

@@ -71,7 +71,7 @@ pub fn demo_config(a: &Args) -> anyhow::Result<InversionConfig> {
         },
         loss: Default::default(),
         // Cold annealing: the EM fit is already in the right basin.
-        strategy: StrategyConfig::Hybrid(HybridConfig {
+        strategy: StrategyConfig::new(&HybridConfig {
             anneal_every: 100,
             ..HybridConfig::from_good_start()
         }),

@@ -5,7 +5,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use ifslab::model::ParamKind;
+use ifslab_strategies::adam::AdamConfig;
 use ifslab_strategies::hybrid::HybridConfig;
+use ifslab_strategies::noisy::NoisyConfig;
 use ifslab_strategies::image::config::{
     GeneratorConfig, ModelConfig, RendererConfig, TargetConfig,
 };
@@ -121,17 +123,25 @@ fn config_from_flags(a: &Args) -> anyhow::Result<InversionConfig> {
     };
     let mut strategy = match (a.strategy.as_str(), init) {
         // From an EM fit the paper's hot annealing would throw the fit away.
-        ("hybrid", InitKind::Em) => StrategyConfig::Hybrid(HybridConfig::from_good_start()),
+        ("hybrid", InitKind::Em) => StrategyConfig::new(&HybridConfig::from_good_start()),
         (name, _) => StrategyConfig::by_name(name)?,
     };
-    match &mut strategy {
-        StrategyConfig::Adam(c) => c.lr = a.lr.unwrap_or(c.lr),
-        StrategyConfig::Noisy(c) => c.adam.lr = a.lr.unwrap_or(c.adam.lr),
-        StrategyConfig::Hybrid(c) => {
-            c.adam.lr = a.lr.unwrap_or(c.adam.lr);
-            c.anneal_every = a.anneal_every.unwrap_or(c.anneal_every);
-        }
-        StrategyConfig::Annealing(_) => {}
+    if let Some(lr) = a.lr {
+        let applied = strategy.update(|c: &mut AdamConfig| c.lr = lr)
+            || strategy.update(|c: &mut NoisyConfig| c.adam.lr = lr)
+            || strategy.update(|c: &mut HybridConfig| c.adam.lr = lr);
+        anyhow::ensure!(
+            applied,
+            "--lr applies to adam, noisy and hybrid, not to {}",
+            strategy.name()
+        );
+    }
+    if let Some(every) = a.anneal_every {
+        anyhow::ensure!(
+            strategy.update(|c: &mut HybridConfig| c.anneal_every = every),
+            "--anneal-every applies to hybrid, not to {}",
+            strategy.name()
+        );
     }
     let parameterisation = match a.param.as_str() {
         "svd" => ParamKind::Svd,

@@ -12,7 +12,7 @@
 use argmin::core::{Error as ArgminError, KV, Problem, Solver, State};
 use serde::{Deserialize, Serialize};
 
-use crate::driver::{Differentiable, GradState, kv_of, to_argmin};
+use crate::driver::{Differentiable, GradState, kv_of, to_argmin, Params};
 use crate::error::{Error, Result};
 
 /// Adam's hyper-parameters (defaults: the chaotic-splatting paper's lr 1e-2).
@@ -41,6 +41,14 @@ impl Default for AdamConfig {
             eps: 1e-8,
             final_lr_factor: 1.0,
         }
+    }
+}
+
+impl Params for AdamConfig {
+    const KIND: &'static str = "adam";
+    const STATS: &'static [&'static str] = &[];
+    fn validate(&self) -> Result<()> {
+        AdamConfig::validate(self)
     }
 }
 

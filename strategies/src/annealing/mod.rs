@@ -19,7 +19,7 @@ use rand_distr::StandardNormal;
 use rand_xoshiro::Xoshiro256PlusPlus;
 use serde::{Deserialize, Serialize};
 
-use crate::driver::{Differentiable, GradState, to_argmin};
+use crate::driver::{Differentiable, GradState, to_argmin, Params};
 use crate::error::{Error, Result};
 
 /// What annealing needs from a problem: a cheap cost on a chosen random stream, so several
@@ -82,6 +82,14 @@ impl Default for AnnealingConfig {
             candidates: 1,
             temperature: 1.0,
         }
+    }
+}
+
+impl Params for AnnealingConfig {
+    const KIND: &'static str = "annealing";
+    const STATS: &'static [&'static str] = &["mse", "accepted"];
+    fn validate(&self) -> Result<()> {
+        AnnealingConfig::validate(self)
     }
 }
 

@@ -16,6 +16,10 @@ pub use log::CsvLog;
 
 use argmin::core::{IterState, KV, KvValue};
 
+use std::fmt::Debug;
+
+use serde::{Serialize, de::DeserializeOwned};
+
 use crate::error::Result;
 
 /// The solver state every gradient strategy runs on: θ, its gradient, the loss.
@@ -53,4 +57,26 @@ pub fn kv_of(eval: &Evaluation) -> KV {
 /// Converts the strategies' error into argmin's.
 pub(crate) fn to_argmin(e: crate::Error) -> argmin::core::Error {
     argmin::core::Error::new(e)
+}
+
+/// What a run hands a strategy's constructor besides its hyper-parameters.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RunSpec {
+    /// The run's length T (schedules such as annealing's temperature depend on it).
+    pub iterations: u64,
+    /// The run's seed (a strategy's own random draws derive from it).
+    pub seed: u64,
+}
+
+/// A strategy's hyper-parameters.
+pub trait Params:
+    Serialize + DeserializeOwned + Default + Clone + Debug + PartialEq + Send + Sync + 'static
+{
+    /// The name a config's `[strategy] kind` uses.
+    const KIND: &'static str;
+    /// The statistics its solver reports per iteration (argmin `KV` keys), logged as CSV
+    /// columns after the loss terms; an iteration that does not report one logs NaN.
+    const STATS: &'static [&'static str];
+    /// Checks the values, naming the offending field.
+    fn validate(&self) -> Result<()>;
 }

@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::adam::{Adam, AdamConfig, adam_iteration};
 use crate::annealing::{Anneal, AnnealingConfig, metropolis_phase};
-use crate::driver::{Differentiable, GradState};
+use crate::driver::{Differentiable, GradState, Params};
 use crate::error::{Error, Result};
 
 /// Hyper-parameters of the hybrid (defaults: the paper's).
@@ -44,6 +44,14 @@ impl Default for HybridConfig {
             anneal_every: 250,
             anneal_fraction: 0.5,
         }
+    }
+}
+
+impl Params for HybridConfig {
+    const KIND: &'static str = "hybrid";
+    const STATS: &'static [&'static str] = &["anneal_accepted", "anneal_mse"];
+    fn validate(&self) -> Result<()> {
+        HybridConfig::validate(self)
     }
 }
 

@@ -5,19 +5,15 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use argmin::core::observers::{Observe, ObserverMode};
-use argmin::core::{Error as ArgminError, Executor, KV, Solver, State};
+use argmin::core::{Error as ArgminError, Executor, KV, State};
 use ifslab::model::Affine2;
-use serde::{Serialize, de::DeserializeOwned};
 
-use crate::adam::Adam;
-use crate::annealing::SimulatedAnnealing;
-use crate::driver::{CsvLog, GradState, JsonCheckpoint};
+use crate::driver::{CsvLog, GradState, JsonCheckpoint, RunSpec};
 use crate::error::{Error, Result};
-use crate::hybrid::Hybrid;
-use crate::image::config::{InversionConfig, StrategyConfig};
+use crate::image::config::InversionConfig;
 use crate::image::init::initial_theta;
 use crate::image::problem::{ImageProblem, TERMS};
-use crate::noisy::NoisyAdam;
+use crate::registry::{self, AnySolver};
 
 /// File names inside a run folder.
 pub const CHECKPOINT_FILE: &str = "checkpoint.json";
@@ -114,48 +110,21 @@ pub fn run_inversion(
     };
     let problem = ImageProblem::from_config(cfg, target)?;
     let lpips_note = problem.lpips_skip_reason().map(str::to_owned);
-    let log = CsvLog::open(dir.join(LOG_FILE), &TERMS, resume_from)?;
+    let stats = registry::stats(cfg.strategy.name())?;
+    let columns: Vec<&str> = TERMS.iter().chain(stats).copied().collect();
+    let log = CsvLog::open(dir.join(LOG_FILE), &columns, resume_from)?;
     let ckpt = JsonCheckpoint::new(&ckpt_path, cfg.checkpoint_every, resume, cfg.iterations);
     let t = cfg.iterations;
     let start = Instant::now();
-    let res = match &cfg.strategy {
-        StrategyConfig::Adam(c) => execute(
-            problem,
-            Adam::new(c.clone())?,
-            theta0,
-            t,
-            ckpt,
-            log,
-            observers,
-        ),
-        StrategyConfig::Hybrid(c) => execute(
-            problem,
-            Hybrid::new(c.clone(), t, cfg.seed)?,
-            theta0,
-            t,
-            ckpt,
-            log,
-            observers,
-        ),
-        StrategyConfig::Annealing(c) => execute(
-            problem,
-            SimulatedAnnealing::new(c.clone(), t, cfg.seed)?,
-            theta0,
-            t,
-            ckpt,
-            log,
-            observers,
-        ),
-        StrategyConfig::Noisy(c) => execute(
-            problem,
-            NoisyAdam::new(c.clone(), cfg.seed)?,
-            theta0,
-            t,
-            ckpt,
-            log,
-            observers,
-        ),
-    }?;
+    let entry = registry::find::<ImageProblem>(cfg.strategy.name())?;
+    let solver = entry.build(
+        cfg.strategy.params(),
+        &RunSpec {
+            iterations: t,
+            seed: cfg.seed,
+        },
+    )?;
+    let res = execute(problem, solver, theta0, t, ckpt, log, observers)?;
     let (problem, state) = res;
     let theta = state
         .get_param()
@@ -173,17 +142,15 @@ pub fn run_inversion(
     })
 }
 
-fn execute<S>(
+fn execute(
     problem: ImageProblem,
-    solver: S,
+    solver: AnySolver<ImageProblem>,
     theta0: Vec<f64>,
     iterations: u64,
     ckpt: JsonCheckpoint,
     log: CsvLog,
     observers: Vec<Box<dyn Observe<GradState> + Send>>,
 ) -> Result<(ImageProblem, GradState)>
-where
-    S: Solver<ImageProblem, GradState> + Serialize + DeserializeOwned + 'static,
 {
     let mut exec = Executor::new(problem, solver)
         .configure(|s| s.param(theta0).max_iters(iterations))

@@ -12,7 +12,7 @@ use rand_xoshiro::Xoshiro256PlusPlus;
 use serde::{Deserialize, Serialize};
 
 use crate::adam::{Adam, AdamConfig, adam_iteration};
-use crate::driver::{Differentiable, GradState};
+use crate::driver::{Differentiable, GradState, Params};
 use crate::error::{Error, Result};
 
 /// Hyper-parameters of the noisy-gradient strategy.
@@ -34,6 +34,14 @@ impl Default for NoisyConfig {
             eta: 0.3,
             gamma: 0.55,
         }
+    }
+}
+
+impl Params for NoisyConfig {
+    const KIND: &'static str = "noisy";
+    const STATS: &'static [&'static str] = &["noise_std"];
+    fn validate(&self) -> Result<()> {
+        NoisyConfig::validate(self)
     }
 }
 

@@ -1,0 +1,316 @@
+//! The open strategy registry: every strategy a run can name, one registration line each.
+//!
+//! A strategy is two things: its hyper-parameters (a [`Params`] type: serde, defaults,
+//! validation, the name configs use and the statistics it logs) and an argmin
+//! [`Solver`] built from them. [`strategies`] lists them for a problem type `P`; a run
+//! looks its `[strategy] kind = "…"` up there, builds an [`AnySolver`] (the solver behind a
+//! box, so the executor, the checkpoint and the log are written once for all of them) and
+//! logs the statistics the strategy reports (annealing acceptances, noise levels, …) as
+//! columns of `log.csv`.
+//!
+//! Adding a strategy: a folder `src/<name>/` with its `Params` type and its `Solver`, and
+//! one line in [`strategies`]. Gradient strategies need [`Differentiable`]; value-only ones
+//! (annealing today, evolutionary ones tomorrow) need only [`Anneal`]'s cost, but every
+//! problem in the registry offers both.
+
+use argmin::core::{Error as ArgminError, KV, Problem, Solver, TerminationStatus};
+use serde::de::{DeserializeOwned, Deserializer};
+use serde::ser::Serializer;
+use serde::{Deserialize, Serialize};
+
+use crate::adam::{Adam, AdamConfig};
+use crate::annealing::{Anneal, AnnealingConfig, SimulatedAnnealing};
+use crate::driver::{Differentiable, GradState, Params, RunSpec};
+use crate::error::{Error, Result};
+use crate::hybrid::{Hybrid, HybridConfig};
+use crate::noisy::{NoisyAdam, NoisyConfig};
+
+/// A problem every registered strategy can run on: a loss with its gradient, and a cheap
+/// cost on a chosen random stream.
+pub trait StrategyProblem: Differentiable + Anneal + 'static {}
+impl<P: Differentiable + Anneal + 'static> StrategyProblem for P {}
+
+/// A solver behind a box: argmin's `Solver` for one problem type, plus its state as JSON.
+pub trait ErasedSolver<P>: Send {
+    /// argmin's `init`.
+    fn init(
+        &mut self,
+        problem: &mut Problem<P>,
+        state: GradState,
+    ) -> std::result::Result<(GradState, Option<KV>), ArgminError>;
+    /// argmin's `next_iter`.
+    fn next_iter(
+        &mut self,
+        problem: &mut Problem<P>,
+        state: GradState,
+    ) -> std::result::Result<(GradState, Option<KV>), ArgminError>;
+    /// argmin's `terminate`.
+    fn terminate(&mut self, state: &GradState) -> TerminationStatus;
+    /// The solver's whole state (for checkpoints).
+    fn to_json(&self) -> serde_json::Result<serde_json::Value>;
+}
+
+impl<P, S> ErasedSolver<P> for S
+where
+    S: Solver<P, GradState> + Serialize + Send,
+{
+    fn init(
+        &mut self,
+        problem: &mut Problem<P>,
+        state: GradState,
+    ) -> std::result::Result<(GradState, Option<KV>), ArgminError> {
+        Solver::init(self, problem, state)
+    }
+    fn next_iter(
+        &mut self,
+        problem: &mut Problem<P>,
+        state: GradState,
+    ) -> std::result::Result<(GradState, Option<KV>), ArgminError> {
+        Solver::next_iter(self, problem, state)
+    }
+    fn terminate(&mut self, state: &GradState) -> TerminationStatus {
+        Solver::terminate(self, state)
+    }
+    fn to_json(&self) -> serde_json::Result<serde_json::Value> {
+        serde_json::to_value(self)
+    }
+}
+
+/// Any registered strategy's solver for problem `P`; it checkpoints as `{kind, solver}` and
+/// is restored through the registry.
+pub struct AnySolver<P> {
+    kind: &'static str,
+    inner: Box<dyn ErasedSolver<P>>,
+}
+
+impl<P> AnySolver<P> {
+    /// The strategy's name.
+    pub fn kind(&self) -> &'static str {
+        self.kind
+    }
+}
+
+impl<P> Solver<P, GradState> for AnySolver<P> {
+    fn name(&self) -> &str {
+        self.kind
+    }
+    fn init(
+        &mut self,
+        problem: &mut Problem<P>,
+        state: GradState,
+    ) -> std::result::Result<(GradState, Option<KV>), ArgminError> {
+        self.inner.init(problem, state)
+    }
+    fn next_iter(
+        &mut self,
+        problem: &mut Problem<P>,
+        state: GradState,
+    ) -> std::result::Result<(GradState, Option<KV>), ArgminError> {
+        self.inner.next_iter(problem, state)
+    }
+    fn terminate(&mut self, state: &GradState) -> TerminationStatus {
+        self.inner.terminate(state)
+    }
+}
+
+#[derive(Serialize, Deserialize)]
+struct SolverRecord {
+    kind: String,
+    solver: serde_json::Value,
+}
+
+impl<P> Serialize for AnySolver<P> {
+    fn serialize<Ser: Serializer>(&self, s: Ser) -> std::result::Result<Ser::Ok, Ser::Error> {
+        let solver = self.inner.to_json().map_err(serde::ser::Error::custom)?;
+        SolverRecord {
+            kind: self.kind.to_owned(),
+            solver,
+        }
+        .serialize(s)
+    }
+}
+
+impl<'de, P: StrategyProblem> Deserialize<'de> for AnySolver<P> {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        let rec = SolverRecord::deserialize(d)?;
+        let entry = find::<P>(&rec.kind).map_err(serde::de::Error::custom)?;
+        (entry.restore)(rec.solver).map_err(serde::de::Error::custom)
+    }
+}
+
+type BuildFn<P> = Box<dyn Fn(&toml::Table, &RunSpec) -> Result<AnySolver<P>> + Send + Sync>;
+type RestoreFn<P> = fn(serde_json::Value) -> Result<AnySolver<P>>;
+
+/// One registered strategy for problem type `P`.
+pub struct StrategyEntry<P> {
+    /// Its name in configs.
+    pub kind: &'static str,
+    /// The statistics it logs.
+    pub stats: &'static [&'static str],
+    /// Its default hyper-parameters as a TOML table.
+    pub defaults: fn() -> toml::Table,
+    /// Reads, completes (defaults filled in) and validates hyper-parameters.
+    pub resolve: fn(&toml::Table) -> Result<toml::Table>,
+    build: BuildFn<P>,
+    restore: RestoreFn<P>,
+}
+
+impl<P: StrategyProblem> StrategyEntry<P> {
+    /// Registers the strategy whose hyper-parameters are `C` and whose solver `make` builds.
+    pub fn new<C, S>(make: fn(C, &RunSpec) -> Result<S>) -> Self
+    where
+        C: Params,
+        S: Solver<P, GradState> + Serialize + DeserializeOwned + Send + 'static,
+    {
+        StrategyEntry {
+            kind: C::KIND,
+            stats: C::STATS,
+            defaults: || to_table(&C::default()).expect("defaults serialise"),
+            resolve: |t| to_table(&parse::<C>(t)?),
+            build: Box::new(move |t, run| {
+                Ok(AnySolver {
+                    kind: C::KIND,
+                    inner: Box::new(make(parse::<C>(t)?, run)?),
+                })
+            }),
+            restore: |v| {
+                let solver: S = serde_json::from_value(v).map_err(|e| {
+                    Error::InvalidInput(format!("checkpoint's {} solver: {e}", C::KIND))
+                })?;
+                Ok(AnySolver {
+                    kind: C::KIND,
+                    inner: Box::new(solver),
+                })
+            },
+        }
+    }
+
+    /// Builds the solver from (unresolved or resolved) hyper-parameters.
+    pub fn build(&self, params: &toml::Table, run: &RunSpec) -> Result<AnySolver<P>> {
+        (self.build)(params, run)
+    }
+}
+
+/// Every strategy a run can name, for problem type `P`: **one line per strategy**.
+pub fn strategies<P: StrategyProblem>() -> Vec<StrategyEntry<P>> {
+    vec![
+        StrategyEntry::new(|c: HybridConfig, r| Hybrid::new(c, r.iterations, r.seed)),
+        StrategyEntry::new(|c: AdamConfig, _| Adam::new(c)),
+        StrategyEntry::new(|c: AnnealingConfig, r| {
+            SimulatedAnnealing::new(c, r.iterations, r.seed)
+        }),
+        StrategyEntry::new(|c: NoisyConfig, r| NoisyAdam::new(c, r.seed)),
+    ]
+}
+
+/// The names of the registered strategies, in registry order.
+pub fn kinds() -> Vec<&'static str> {
+    strategies::<ParamsOnly>().iter().map(|e| e.kind).collect()
+}
+
+/// The entry called `kind`.
+pub fn find<P: StrategyProblem>(kind: &str) -> Result<StrategyEntry<P>> {
+    strategies::<P>()
+        .into_iter()
+        .find(|e| e.kind == kind)
+        .ok_or_else(|| {
+            Error::param(
+                "strategy",
+                format!(
+                    "unknown strategy `{kind}`; choose one of {}",
+                    kinds().join(", ")
+                ),
+            )
+        })
+}
+
+/// Resolves `params` for the strategy `kind` (defaults filled in, values validated) without
+/// a problem type (configs are read before the problem exists).
+pub fn resolve(kind: &str, params: &toml::Table) -> Result<toml::Table> {
+    (find::<ParamsOnly>(kind)?.resolve)(params)
+}
+
+/// The default hyper-parameters of the strategy `kind`.
+pub fn defaults(kind: &str) -> Result<toml::Table> {
+    Ok((find::<ParamsOnly>(kind)?.defaults)())
+}
+
+/// The statistics the strategy `kind` logs.
+pub fn stats(kind: &str) -> Result<&'static [&'static str]> {
+    Ok(find::<ParamsOnly>(kind)?.stats)
+}
+
+fn parse<C: Params>(t: &toml::Table) -> Result<C> {
+    let c: C = toml::Value::Table(t.clone())
+        .try_into()
+        .map_err(|e: toml::de::Error| {
+            Error::InvalidInput(format!(
+                "config section `strategy` ({}): {}",
+                C::KIND,
+                e.message()
+            ))
+        })?;
+    c.validate()?;
+    Ok(c)
+}
+
+fn to_table<C: Serialize>(c: &C) -> Result<toml::Table> {
+    match toml::Value::try_from(c) {
+        Ok(toml::Value::Table(t)) => Ok(t),
+        Ok(_) => Err(Error::InvalidInput(
+            "strategy parameters must be a table".into(),
+        )),
+        Err(e) => Err(Error::InvalidInput(format!(
+            "strategy parameters do not serialise: {e}"
+        ))),
+    }
+}
+
+/// A problem type for the registry's problem-independent parts (names, defaults,
+/// resolution); it is never evaluated.
+pub struct ParamsOnly;
+
+impl Differentiable for ParamsOnly {
+    fn evaluate(&self, _theta: &[f64], _iter: u64) -> Result<crate::driver::Evaluation> {
+        Err(Error::InvalidInput(
+            "ParamsOnly is not a problem to evaluate".into(),
+        ))
+    }
+}
+
+impl Anneal for ParamsOnly {
+    fn anneal_cost(&self, _theta: &[f64], _stream: u64, _frac: f64) -> Result<f64> {
+        Err(Error::InvalidInput(
+            "ParamsOnly is not a problem to evaluate".into(),
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_strategy_resolves_its_defaults_and_names_are_unique() {
+        let ks = kinds();
+        let mut sorted = ks.clone();
+        sorted.sort_unstable();
+        sorted.dedup();
+        assert_eq!(sorted.len(), ks.len(), "{ks:?}");
+        for k in ks {
+            let d = defaults(k).unwrap();
+            assert_eq!(resolve(k, &d).unwrap(), d, "{k}");
+            assert_eq!(resolve(k, &toml::Table::new()).unwrap(), d, "{k}");
+        }
+    }
+
+    #[test]
+    fn unknown_kinds_and_fields_are_named() {
+        let e = resolve("cmaes", &toml::Table::new()).unwrap_err().to_string();
+        assert!(e.contains("cmaes") && e.contains("hybrid"), "{e}");
+        let mut t = toml::Table::new();
+        t.insert("lr_typo".into(), toml::Value::Float(0.1));
+        let e = resolve("adam", &t).unwrap_err().to_string();
+        assert!(e.contains("lr_typo"), "{e}");
+    }
+}
