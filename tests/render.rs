@@ -339,7 +339,7 @@ fn renders_equal_the_reference_renderer() {
         ..base.clone()
     };
     assert_matches_reference(&maps, &probs, &density, "density");
-    // Sixteen 512 KiB tiles (2^26 bits), each bin filled and written hundreds of times.
+    // Sixteen 512 KiB tiles (2^26 bits), most bins filled and written several times.
     let tiled = RenderConfig {
         width: 512,
         height: 512,

@@ -12,24 +12,25 @@
 //! Sizes, for the development machine's 48 KiB L1d and 2 MiB L2 per core (BENCHMARKS.md has
 //! the measurements): a tile is 512 KiB, a quarter of L2, so the tile being written, the
 //! bin being read and the chaos game's state fit in L2 together, and its 128 pages in the
-//! TLB. The bins of one accumulator hold 4 MiB together (16 384 points per bin at 1024² ×
-//! 16, 64 tiles): while points are binned only each bin's write head, one cache line, needs
-//! to stay in L1 (4 KiB for 64 bins), and a longer bin writes more points per cache line of
-//! its tile. 1 MiB of bins measured ~15 % slower, 2–16 MiB the same within noise; 128 KiB
-//! tiles (256 write heads) twice as slow, 256 KiB–2 MiB tiles the same within noise.
+//! TLB. A bin holds one point per 8 bytes of its tile (65 536 points, 256 KiB), so a flush
+//! writes 8 points per cache line of the tile on average, and the bins of an accumulator
+//! take half the memory of its buffer (16 MiB beside 32 MiB at 1024² × 16). While points
+//! are binned only each bin's write head, one cache line, needs to stay in L1 (4 KiB for
+//! 64 bins); bins are written and read sequentially, so their size costs bandwidth, not
+//! misses. Shorter bins measured slower (a quarter: ~10 %, a sixteenth: ~15 %), longer
+//! ones no faster; 128 KiB tiles (256 write heads) twice as slow, 256 KiB–2 MiB tiles the
+//! same within noise.
 
 use super::Accumulator;
 
 /// Target bytes of one tile of an accumulator's buffer.
 pub(crate) const TILE_BYTES: usize = 512 << 10;
 
-/// Target bytes of all bins of one accumulator together.
-const BIN_BYTES: usize = 4 << 20;
+/// Bytes of tile per binned point.
+const TILE_BYTES_PER_POINT: usize = 8;
 
-/// Bin capacity bounds (entries): a flush stays a long loop when a huge buffer has many
-/// tiles, and a small render (one tile) does not allocate more than 256 KiB of bins.
+/// Smallest bin (entries), for tiny buffers: a flush stays a loop worth calling.
 const MIN_BIN: usize = 1 << 10;
-const MAX_BIN: usize = 1 << 16;
 
 /// Entries (one cache line) between consecutive bins, so bins of capacity 2^k do not all
 /// start in the same L1 set.
@@ -51,7 +52,8 @@ impl<A: Accumulator> Binned<A> {
     pub(crate) fn new(acc: A) -> Self {
         let shift = acc.tile_shift();
         let tiles = acc.tiles();
-        let cap = (BIN_BYTES / 4 / tiles).clamp(MIN_BIN, MAX_BIN);
+        let tile_bytes = (1usize << shift) * A::CELL_BITS as usize / 8;
+        let cap = (tile_bytes / TILE_BYTES_PER_POINT).max(MIN_BIN);
         let stride = cap + BIN_PAD;
         Binned {
             acc,

@@ -53,6 +53,7 @@ fn count_bits(bits: &[u64], start: u64, len: u64) -> u32 {
 }
 
 impl Accumulator for Coverage {
+    const CELL_BITS: u32 = 1;
     const SUBPIXELS: bool = true;
 
     fn row_cells(&self) -> u64 {

@@ -29,6 +29,7 @@ impl Density {
 }
 
 impl Accumulator for Density {
+    const CELL_BITS: u32 = 32;
     const SUBPIXELS: bool = false;
 
     fn row_cells(&self) -> u64 {

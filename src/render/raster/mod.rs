@@ -4,8 +4,8 @@
 //! Two modes:
 //! - [`RenderMode::Coverage`]: the papers' ground truth. Every point sets one bit of an
 //!   `s×`-supersampled binary buffer; each output pixel is the covered fraction of its
-//!   `s×s` sub-pixels (a box downsample). The buffer is tiled so a pixel's sub-pixels are
-//!   contiguous bits, which keeps the downsample a popcount.
+//!   `s×s` sub-pixels (a box downsample). The buffer holds the supersampled grid row by row,
+//!   so a pixel's sub-pixels in one row are adjacent bits and the downsample is popcounts.
 //! - [`RenderMode::Density`]: hit counts per pixel, log tone-mapped
 //!   (`log(1 + c) / log(1 + max c)`).
 //!
@@ -288,6 +288,8 @@ impl<A: Accumulator> PointSink for BinSink<'_, A> {
 pub(crate) trait Accumulator: Send {
     /// Whether cells are sub-pixels (else output pixels), row by row.
     const SUBPIXELS: bool;
+    /// Bits per cell.
+    const CELL_BITS: u32;
     /// Cells per row (at least the grid's width).
     fn row_cells(&self) -> u64;
     /// `log2` of the cells per tile.
