@@ -339,6 +339,12 @@ fn renders_equal_the_reference_renderer() {
         ..base.clone()
     };
     assert_matches_reference(&maps, &probs, &density, "density");
+    // Density cells are output pixels; the supersampling factor must not change them.
+    let density_odd = RenderConfig {
+        supersample: 3,
+        ..density.clone()
+    };
+    assert_matches_reference(&maps, &probs, &density_odd, "density at 3×");
     // Sixteen 512 KiB tiles (2^26 bits), most bins filled and written several times.
     let tiled = RenderConfig {
         width: 512,
@@ -367,6 +373,48 @@ fn renders_equal_the_reference_renderer() {
     assert!(r.stats.rounds > 2, "{} rounds", r.stats.rounds);
     assert!(r.stats.points_in_window < r.stats.points_generated / 2);
     assert_matches_reference(&maps, &probs, &zoomed, "zoom 6× with min_hits");
+}
+
+#[test]
+fn hit_targets_stop_at_max_points_or_the_time_limit() {
+    let (maps, probs) = random_code(5);
+    // A window few points reach and a hit target it cannot meet.
+    let unreachable = RenderConfig {
+        width: 64,
+        height: 64,
+        points: 50_000,
+        supersample: 4,
+        zoom: Some(Zoom {
+            factor: 50.0,
+            center: None,
+        }),
+        min_hits: u64::MAX,
+        max_points: 150_000,
+        seed: 9,
+        ..RenderConfig::default()
+    };
+    let r = render(&maps, &probs, &unreachable, None).unwrap();
+    assert_eq!(r.stats.rounds, 3);
+    assert_eq!(r.stats.points_generated, 150_000);
+    assert!(!r.stats.stopped_by_time);
+    assert_matches_reference(&maps, &probs, &unreachable, "stopped by max_points");
+    // Any round outlasts a nanosecond, so the limit stops the rounds after the first.
+    let timed = RenderConfig {
+        max_points: 0,
+        time_limit: Some(1e-9),
+        ..unreachable.clone()
+    };
+    let r = render(&maps, &probs, &timed, None).unwrap();
+    assert_eq!(r.stats.rounds, 1);
+    assert_eq!(r.stats.points_generated, 50_000);
+    assert!(r.stats.stopped_by_time);
+    let one_round = RenderConfig {
+        min_hits: 0,
+        time_limit: None,
+        ..timed.clone()
+    };
+    let want = render(&maps, &probs, &one_round, None).unwrap();
+    assert_eq!(r.values, want.values);
 }
 
 #[test]
