@@ -1,10 +1,10 @@
-//! The chaos game and the evaluation renderer are deterministic whatever the thread count,
-//! and a diverging trajectory is reported, never drawn.
+//! The chaos game and the evaluation renderer are deterministic whatever the thread count
+//! and instruction set, and a diverging trajectory is reported, never drawn.
 
 use ifslab::Error;
-use ifslab::chaos::{ChaosGame, generate_nd};
+use ifslab::chaos::{ChaosGame, Isa, MapSampler, PointStream, Trajectory, generate_nd};
 use ifslab::model::random::sample_code;
-use ifslab::model::{Affine2, library};
+use ifslab::model::{Affine2, Map2, library};
 use ifslab::render::{RenderConfig, RenderMode, render};
 
 fn with_threads<T: Send>(n: usize, f: impl FnOnce() -> T + Send) -> T {
@@ -113,4 +113,128 @@ fn divergent_trajectories_are_reported() {
         render(&maps, &probs, &cfg, None),
         Err(Error::Divergent { .. })
     ));
+}
+
+/// A 10-map random code with its evaluation (area-weighted, non-uniform) probabilities.
+fn random_code(seed: u64) -> (Vec<Affine2>, Vec<f64>) {
+    let code = sample_code(10, seed).unwrap();
+    let probs = ifslab::model::IfsCode::from_affine2(None, &code.maps)
+        .unwrap()
+        .evaluation_probabilities()
+        .unwrap();
+    (code.maps, probs)
+}
+
+fn bits(points: &[[f64; 2]]) -> Vec<[u64; 2]> {
+    points
+        .iter()
+        .map(|p| [p[0].to_bits(), p[1].to_bits()])
+        .collect()
+}
+
+/// Every point a stream hands out, in order.
+fn stream_points<M: Map2>(stream: &PointStream<'_, M>, first: u64, kept: &[u64]) -> Vec<[f64; 2]> {
+    let mut out = Vec::new();
+    stream.run(first, kept, &mut |p| out.push(p)).unwrap();
+    out
+}
+
+/// An affine map evaluated with separate multiplies and adds (two roundings per term).
+struct Unfused(Affine2);
+
+impl Map2 for Unfused {
+    fn apply(&self, p: [f64; 2]) -> [f64; 2] {
+        let m = &self.0.m;
+        [
+            m[(0, 0)] * p[0] + (m[(0, 1)] * p[1] + self.0.b[0]),
+            m[(1, 0)] * p[0] + (m[(1, 1)] * p[1] + self.0.b[1]),
+        ]
+    }
+}
+
+#[test]
+fn point_streams_are_the_trajectories_bit_for_bit_on_every_isa() {
+    let (maps, probs) = random_code(7);
+    let sampler = MapSampler::new(&probs).unwrap();
+    let (seed, hw, warmup) = (13, 1.0, 25);
+    let portable = PointStream::new(&maps, &sampler, seed, hw, warmup)
+        .unwrap()
+        .with_isa(Isa::Portable)
+        .unwrap();
+    let detected = PointStream::new(&maps, &sampler, seed, hw, warmup).unwrap();
+    assert_eq!(detected.isa(), Isa::detect());
+    // One trajectory at a time: exactly `Trajectory` with the warm-up dropped.
+    for index in [0u64, 5, 1_000_003] {
+        let mut tr = Trajectory::new(&maps, &sampler, seed, index, hw);
+        tr.skip_steps(warmup);
+        let want: Vec<[f64; 2]> = (0..2000).map(|_| tr.step()).collect();
+        for stream in [&portable, &detected] {
+            let got = stream_points(stream, index, &[2000]);
+            assert_eq!(
+                bits(&got),
+                bits(&want),
+                "trajectory {index} on {:?}",
+                stream.isa()
+            );
+        }
+    }
+    // Lanes of unequal length, more than one group of lanes: the same points in the same
+    // order on both instruction sets, and the same multiset as one trajectory at a time.
+    let kept = [0u64, 1, 700, 699, 701, 3, 250];
+    let a = stream_points(&portable, 40, &kept);
+    let b = stream_points(&detected, 40, &kept);
+    assert_eq!(a.len() as u64, kept.iter().sum::<u64>());
+    assert_eq!(bits(&a), bits(&b));
+    let mut one_by_one: Vec<[u64; 2]> = kept
+        .iter()
+        .enumerate()
+        .flat_map(|(l, &n)| bits(&stream_points(&portable, 40 + l as u64, &[n])))
+        .collect();
+    let mut lanes = bits(&a);
+    one_by_one.sort_unstable();
+    lanes.sort_unstable();
+    assert_eq!(lanes, one_by_one);
+    // The comparison can tell: evaluating the maps without fusing changes the points.
+    let unfused: Vec<Unfused> = maps.iter().map(|m| Unfused(*m)).collect();
+    let plain = PointStream::new(&unfused, &sampler, seed, hw, warmup).unwrap();
+    assert_ne!(bits(&stream_points(&plain, 40, &kept)), bits(&a));
+}
+
+#[test]
+fn point_streams_refuse_bad_input_and_report_divergence() {
+    let (maps, probs) = random_code(2);
+    let sampler = MapSampler::new(&probs).unwrap();
+    assert!(matches!(
+        PointStream::new(&maps[..9], &sampler, 0, 1.0, 10),
+        Err(Error::Shape(_))
+    ));
+    assert!(matches!(
+        PointStream::new(&maps, &sampler, 0, f64::NAN, 10),
+        Err(Error::InvalidParameter { .. })
+    ));
+    let none: [Affine2; 0] = [];
+    assert!(matches!(
+        PointStream::new(&none, &sampler, 0, 1.0, 10),
+        Err(Error::Empty(_))
+    ));
+    // σmax = 3: the trajectory leaves ±1e100 after ≈ 210 steps; the step is where it did.
+    let far = [
+        Affine2::new(3.0, 0.0, 0.0, 3.0, 1.0, 0.0),
+        Affine2::new(3.0, 0.0, 0.0, 3.0, -1.0, 0.0),
+    ];
+    let half = MapSampler::new(&[0.5, 0.5]).unwrap();
+    let stream = PointStream::new(&far, &half, 0, 1.0, 10).unwrap();
+    // Trajectory 8 stops after 15 steps, still bounded; 9 and 10 run off.
+    match stream.run(8, &[5, 2000, 1000], &mut |_| {}) {
+        Err(Error::Divergent { trajectory, step }) => {
+            assert_eq!(trajectory, 9);
+            let mut tr = Trajectory::new(&far, &half, 0, 9, 1.0);
+            let first_bad = (0..)
+                .find(|_| !ifslab::chaos::is_bounded(&tr.step()))
+                .unwrap();
+            assert_eq!(step, first_bad);
+            assert!(step > 100 && step < 1000, "step {step}");
+        }
+        other => panic!("expected Divergent, got {other:?}"),
+    }
 }

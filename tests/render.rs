@@ -1,9 +1,13 @@
 //! The evaluation renderer draws what the attractor is: the Sierpiński triangle has its
-//! box-counting dimension, the fern fills its known region, zoom views keep their promises.
+//! box-counting dimension, the fern fills its known region, zoom views keep their promises;
+//! and it draws exactly what a plain reference renderer draws from the same points, on
+//! every instruction set.
 
+use ifslab::chaos::{Isa, MapSampler, Trajectory};
 use ifslab::metrics::{box_counting_dimension, iou};
-use ifslab::model::{Framing, library};
-use ifslab::render::{RenderConfig, View, Zoom, render};
+use ifslab::model::random::sample_code;
+use ifslab::model::{Affine2, Framing, IfsCode, library};
+use ifslab::render::{RenderConfig, RenderMode, View, Zoom, render, render_with_isa};
 
 fn render_builtin(name: &str, cfg: &RenderConfig) -> ifslab::render::Raster {
     let code = library::builtin(name).unwrap();
@@ -194,4 +198,273 @@ fn supersampled_coverage_is_fractional_and_consistent() {
             .iter()
             .all(|v| ((v * 256.0) - (v * 256.0).round()).abs() < 1e-3)
     );
+}
+
+fn with_threads<T: Send>(n: usize, f: impl FnOnce() -> T + Send) -> T {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(n)
+        .build()
+        .unwrap()
+        .install(f)
+}
+
+fn random_code(seed: u64) -> (Vec<Affine2>, Vec<f64>) {
+    let code = sample_code(10, seed).unwrap();
+    let probs = IfsCode::from_affine2(None, &code.maps)
+        .unwrap()
+        .evaluation_probabilities()
+        .unwrap();
+    (code.maps, probs)
+}
+
+/// What a render must produce, the plain way: every point of every trajectory (trajectory
+/// `round·t + i` keeps `points / t` points, the first `points mod t` one more, after
+/// `warmup` steps from `[−1, 1]²`) sets one sub-pixel of a `(w·s) × (h·s)` grid or counts
+/// on its pixel; rounds repeat until `min_hits` points landed or `max_points` were made.
+/// Returns the pixel values and the in-window count.
+fn reference(
+    maps: &[Affine2],
+    probs: &[f64],
+    cfg: &RenderConfig,
+    win: &Framing,
+) -> (Vec<f32>, u64) {
+    let sampler = MapSampler::new(probs).unwrap();
+    let t = if cfg.trajectories > 0 {
+        cfg.trajectories as u64
+    } else {
+        (cfg.points / 256).clamp(1, 1024)
+    };
+    let (w, h, s) = (
+        cfg.width as usize,
+        cfg.height as usize,
+        cfg.supersample as usize,
+    );
+    let (gw, gh) = (w * s, h * s);
+    let size = win.size();
+    // Supersampled pixels per world unit, as the renderer computes them.
+    let kx = cfg.width as f64 * s as f64 / size[0];
+    let ky = cfg.height as f64 * s as f64 / size[1];
+    let mut sub = vec![false; gw * gh];
+    let mut counts = vec![0u32; w * h];
+    let max_points = if cfg.max_points > 0 {
+        cfg.max_points
+    } else {
+        cfg.points * 64
+    };
+    let (mut hits, mut generated, mut round) = (0u64, 0u64, 0u64);
+    loop {
+        for i in 0..t {
+            let n = cfg.points / t + u64::from(i < cfg.points % t);
+            let mut tr = Trajectory::new(maps, &sampler, cfg.seed, round * t + i, 1.0);
+            tr.skip_steps(cfg.warmup);
+            for _ in 0..n {
+                let p = tr.step();
+                let fx = (p[0] - win.min[0]) * kx;
+                let fy = (win.max[1] - p[1]) * ky;
+                if fx >= 0.0 && fx < gw as f64 && fy >= 0.0 && fy < gh as f64 {
+                    let (x, y) = (fx as usize, fy as usize);
+                    sub[y * gw + x] = true;
+                    counts[(y / s) * w + x / s] += 1;
+                    hits += 1;
+                }
+            }
+        }
+        generated += cfg.points;
+        round += 1;
+        if cfg.min_hits == 0 || hits >= cfg.min_hits || generated >= max_points {
+            break;
+        }
+    }
+    let values = match cfg.mode {
+        RenderMode::Coverage => {
+            // The covered count of each pixel's s² sub-pixels, times 1/s².
+            let inv = 1.0 / (s * s) as f32;
+            (0..w * h)
+                .map(|p| {
+                    let (px, py) = (p % w, p / w);
+                    let n = (0..s * s)
+                        .filter(|k| sub[(py * s + k / s) * gw + px * s + k % s])
+                        .count();
+                    n as f32 * inv
+                })
+                .collect()
+        }
+        RenderMode::Density => {
+            let max = counts.iter().copied().max().unwrap();
+            let norm = 1.0 / (1.0 + max as f64).ln();
+            counts
+                .iter()
+                .map(|&c| ((1.0 + c as f64).ln() * norm) as f32)
+                .collect()
+        }
+    };
+    (values, hits)
+}
+
+fn assert_matches_reference(maps: &[Affine2], probs: &[f64], cfg: &RenderConfig, what: &str) {
+    for threads in [1, 3] {
+        let r = with_threads(threads, || render(maps, probs, cfg, None).unwrap());
+        let (want, hits) = reference(maps, probs, cfg, &r.stats.window);
+        assert_eq!(r.stats.points_in_window, hits, "{what}, {threads} threads");
+        let differ = r.values.iter().zip(&want).filter(|(a, b)| a != b).count();
+        assert_eq!(
+            differ, 0,
+            "{what}, {threads} threads: {differ} pixels differ"
+        );
+        assert!(want.iter().any(|&v| v > 0.0), "{what}: nothing drawn");
+    }
+}
+
+#[test]
+fn renders_equal_the_reference_renderer() {
+    let (maps, probs) = random_code(5);
+    let base = RenderConfig {
+        width: 97,
+        height: 61,
+        points: 300_000,
+        supersample: 4,
+        seed: 11,
+        ..RenderConfig::default()
+    };
+    assert_matches_reference(&maps, &probs, &base, "97×61 at 4×");
+    // Sub-pixels by division rather than shifts.
+    let odd = RenderConfig {
+        supersample: 3,
+        ..base.clone()
+    };
+    assert_matches_reference(&maps, &probs, &odd, "3×");
+    let density = RenderConfig {
+        supersample: 1,
+        mode: RenderMode::Density,
+        ..base.clone()
+    };
+    assert_matches_reference(&maps, &probs, &density, "density");
+    // Density cells are output pixels; the supersampling factor must not change them.
+    let density_odd = RenderConfig {
+        supersample: 3,
+        ..density.clone()
+    };
+    assert_matches_reference(&maps, &probs, &density_odd, "density at 3×");
+    // Sixteen 512 KiB tiles (2^26 bits), most bins filled and written several times.
+    let tiled = RenderConfig {
+        width: 512,
+        height: 512,
+        points: 3_000_000,
+        supersample: 16,
+        seed: 2,
+        ..RenderConfig::default()
+    };
+    assert_matches_reference(&maps, &probs, &tiled, "512² at 16×");
+    // A zoom window that most points miss, filled over several rounds.
+    let zoomed = RenderConfig {
+        width: 80,
+        height: 80,
+        points: 100_000,
+        supersample: 2,
+        zoom: Some(Zoom {
+            factor: 6.0,
+            center: None,
+        }),
+        min_hits: 150_000,
+        seed: 4,
+        ..RenderConfig::default()
+    };
+    let r = render(&maps, &probs, &zoomed, None).unwrap();
+    assert!(r.stats.rounds > 2, "{} rounds", r.stats.rounds);
+    assert!(r.stats.points_in_window < r.stats.points_generated / 2);
+    assert_matches_reference(&maps, &probs, &zoomed, "zoom 6× with min_hits");
+}
+
+#[test]
+fn hit_targets_stop_at_max_points_or_the_time_limit() {
+    let (maps, probs) = random_code(5);
+    // A window few points reach and a hit target it cannot meet.
+    let unreachable = RenderConfig {
+        width: 64,
+        height: 64,
+        points: 50_000,
+        supersample: 4,
+        zoom: Some(Zoom {
+            factor: 50.0,
+            center: None,
+        }),
+        min_hits: u64::MAX,
+        max_points: 150_000,
+        seed: 9,
+        ..RenderConfig::default()
+    };
+    let r = render(&maps, &probs, &unreachable, None).unwrap();
+    assert_eq!(r.stats.rounds, 3);
+    assert_eq!(r.stats.points_generated, 150_000);
+    assert!(!r.stats.stopped_by_time);
+    assert_matches_reference(&maps, &probs, &unreachable, "stopped by max_points");
+    // Any round outlasts a nanosecond, so the limit stops the rounds after the first.
+    let timed = RenderConfig {
+        max_points: 0,
+        time_limit: Some(1e-9),
+        ..unreachable.clone()
+    };
+    let r = render(&maps, &probs, &timed, None).unwrap();
+    assert_eq!(r.stats.rounds, 1);
+    assert_eq!(r.stats.points_generated, 50_000);
+    assert!(r.stats.stopped_by_time);
+    let one_round = RenderConfig {
+        min_hits: 0,
+        time_limit: None,
+        ..timed.clone()
+    };
+    let want = render(&maps, &probs, &one_round, None).unwrap();
+    assert_eq!(r.values, want.values);
+}
+
+#[test]
+fn the_fma_path_renders_the_same_bits_as_the_portable_one() {
+    if Isa::detect() == Isa::Portable {
+        eprintln!("this CPU has no AVX2 + FMA: only the portable path exists here");
+        assert!(matches!(
+            render_with_isa(
+                &[Affine2::new(0.5, 0.0, 0.0, 0.5, 0.0, 0.0)],
+                &[1.0],
+                &RenderConfig::default(),
+                None,
+                Isa::Fma
+            ),
+            Err(ifslab::Error::InvalidParameter { .. })
+        ));
+        return;
+    }
+    let (maps, probs) = random_code(8);
+    let fern = library::builtin("fern").unwrap();
+    let cases = [
+        (maps, probs),
+        (
+            fern.affine2().unwrap(),
+            fern.evaluation_probabilities().unwrap(),
+        ),
+    ];
+    for (maps, probs) in &cases {
+        for mode in [RenderMode::Coverage, RenderMode::Density] {
+            // Fitted view: the pilot run and the rounds both go through the maps.
+            let cfg = RenderConfig {
+                width: 256,
+                height: 256,
+                points: 2_000_000,
+                supersample: 8,
+                mode,
+                seed: 21,
+                ..RenderConfig::default()
+            };
+            let fast = render_with_isa(maps, probs, &cfg, None, Isa::Fma).unwrap();
+            let portable = render_with_isa(maps, probs, &cfg, None, Isa::Portable).unwrap();
+            assert_eq!(fast.stats.window, portable.stats.window);
+            assert_eq!(fast.stats.points_in_window, portable.stats.points_in_window);
+            let differ = fast
+                .values
+                .iter()
+                .zip(&portable.values)
+                .filter(|(a, b)| a != b)
+                .count();
+            assert_eq!(differ, 0, "{mode:?}: {differ} pixels differ");
+        }
+    }
 }

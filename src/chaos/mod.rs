@@ -7,11 +7,19 @@
 //! they need a few steps to reach the attractor (error shrinks like σmax^k).
 //! A trajectory whose point becomes non-finite or leaves [`DIVERGENCE_BOUND`] is reported as
 //! [`crate::Error::Divergent`].
+//!
+//! [`PointStream`] is the form the evaluation renderer runs: trajectories stepped four at a
+//! time, each point handed to a sink, the loop compiled once per instruction set ([`Isa`])
+//! so affine maps' multiply–adds are single instructions where the CPU has FMA.
 
 mod game;
+mod isa;
 mod rng;
 mod sampler;
+mod stream;
 
 pub use game::{ChaosGame, DIVERGENCE_BOUND, Points, Trajectory, bbox, generate_nd, is_bounded};
+pub use isa::Isa;
 pub use rng::{mix_seed, trajectory_rng};
 pub use sampler::MapSampler;
+pub use stream::{LANES, PointSink, PointStream};

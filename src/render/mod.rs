@@ -17,4 +17,4 @@ pub mod raster;
 pub mod splat;
 
 pub use framing::{FIT_FILL, View, Zoom, fit_window, zoom_window};
-pub use raster::{Raster, RenderConfig, RenderMode, RenderStats, render};
+pub use raster::{Raster, RenderConfig, RenderMode, RenderStats, render, render_with_isa};

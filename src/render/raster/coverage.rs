@@ -1,27 +1,35 @@
-//! Binary coverage buffer, tiled so each output pixel's `s×s` sub-pixels are contiguous bits.
+//! Binary coverage buffer: one bit per sub-pixel of the `(width·s) × (height·s)` grid, row
+//! by row (rows padded to whole words); an output pixel is the popcount of its `s×s` block.
 
 use rayon::prelude::*;
 
 use super::Accumulator;
-
-/// 64-bit words for a `width × height` image at `s×` supersampling.
-pub(crate) fn words_for(width: u32, height: u32, s: u32) -> usize {
-    let bits = width as u64 * height as u64 * (s as u64).pow(2);
-    bits.div_ceil(64) as usize
-}
+use super::bins::TILE_BYTES;
 
 pub(crate) struct Coverage {
+    /// Padded to whole tiles.
     bits: Vec<u64>,
-    s: u32,
-    ss: u64,
+    s: usize,
+    /// Words per sub-pixel row.
+    row_words: usize,
+    tile_shift: u32,
 }
 
 impl Coverage {
-    pub(crate) fn new(words: usize, s: u32) -> Self {
+    pub(crate) fn new(width: u32, height: u32, s: u32) -> Self {
+        let row_words = (width as u64 * s as u64).div_ceil(64);
+        let cells = row_words * 64 * height as u64 * s as u64;
+        // Small buffers are one tile of at least a word.
+        let tile_shift = (TILE_BYTES as u64 * 8)
+            .trailing_zeros()
+            .min(cells.next_power_of_two().trailing_zeros())
+            .max(6);
+        let tiles = cells.div_ceil(1 << tile_shift);
         Coverage {
-            bits: vec![0; words],
-            s,
-            ss: (s as u64).pow(2),
+            bits: vec![0; (tiles << (tile_shift - 6)) as usize],
+            s: s as usize,
+            row_words: row_words as usize,
+            tile_shift,
         }
     }
 }
@@ -45,12 +53,27 @@ fn count_bits(bits: &[u64], start: u64, len: u64) -> u32 {
 }
 
 impl Accumulator for Coverage {
-    #[inline(always)]
-    fn add(&mut self, pixel: u64, sx: u32, sy: u32) {
-        let bit = pixel * self.ss + (sy * self.s + sx) as u64;
-        // The index is < width·height·s² by construction of `PixelMap::locate`.
-        let w = &mut self.bits[(bit >> 6) as usize];
-        *w |= 1u64 << (bit & 63);
+    const CELL_BITS: u32 = 1;
+    const SUBPIXELS: bool = true;
+
+    fn row_cells(&self) -> u64 {
+        self.row_words as u64 * 64
+    }
+
+    fn tile_shift(&self) -> u32 {
+        self.tile_shift
+    }
+
+    fn tiles(&self) -> usize {
+        self.bits.len() >> (self.tile_shift - 6)
+    }
+
+    fn write_tile(&mut self, tile: usize, offsets: &[u32]) {
+        let n = 1usize << (self.tile_shift - 6);
+        let words = &mut self.bits[tile * n..(tile + 1) * n];
+        for &o in offsets {
+            words[(o >> 6) as usize] |= 1u64 << (o & 63);
+        }
     }
 
     fn merge(&mut self, other: Self) {
@@ -61,12 +84,33 @@ impl Accumulator for Coverage {
     }
 
     fn finish(self, width: u32, height: u32) -> Vec<f32> {
-        let ss = self.ss;
-        let inv = 1.0 / ss as f32;
-        (0..width as u64 * height as u64)
-            .into_par_iter()
-            .map(|p| count_bits(&self.bits, p * ss, ss) as f32 * inv)
-            .collect()
+        let (w, s) = (width as usize, self.s);
+        let inv = 1.0 / (s * s) as f32;
+        let mut out = vec![0.0f32; w * height as usize];
+        out.par_chunks_mut(w).enumerate().for_each(|(py, out_row)| {
+            let mut counts = vec![0u32; w];
+            for sy in 0..s {
+                let row = &self.bits[(py * s + sy) * self.row_words..][..self.row_words];
+                if 64 % s == 0 {
+                    // Each word holds whole pixels' sub-rows: `64 / s` of them.
+                    let per = 64 / s;
+                    let mask = u64::MAX >> (64 - s);
+                    for (j, &word) in row.iter().enumerate().filter(|(_, w)| **w != 0) {
+                        for (q, c) in counts[j * per..].iter_mut().take(per).enumerate() {
+                            *c += ((word >> (q * s)) & mask).count_ones();
+                        }
+                    }
+                } else {
+                    for (px, c) in counts.iter_mut().enumerate() {
+                        *c += count_bits(row, (px * s) as u64, s as u64);
+                    }
+                }
+            }
+            for (o, c) in out_row.iter_mut().zip(counts) {
+                *o = c as f32 * inv;
+            }
+        });
+        out
     }
 }
 

@@ -4,31 +4,38 @@
 //! Two modes:
 //! - [`RenderMode::Coverage`]: the papers' ground truth. Every point sets one bit of an
 //!   `s×`-supersampled binary buffer; each output pixel is the covered fraction of its
-//!   `s×s` sub-pixels (a box downsample). The buffer is tiled so a pixel's sub-pixels are
-//!   contiguous bits, which keeps the downsample a popcount.
+//!   `s×s` sub-pixels (a box downsample). The buffer holds the supersampled grid row by row,
+//!   so a pixel's sub-pixels in one row are adjacent bits and the downsample is popcounts.
 //! - [`RenderMode::Density`]: hit counts per pixel, log tone-mapped
 //!   (`log(1 + c) / log(1 + max c)`).
 //!
-//! Trajectories are split into one contiguous group per thread, each with its own buffer,
-//! merged afterwards by OR (coverage) or sum (density): both are order-independent, and
-//! every trajectory has its own seeded generator, so the image is bit-identical for any
-//! thread count.
+//! Trajectories run in batches of four on whichever worker thread is free, each worker with
+//! its own buffer; the buffers are merged afterwards by OR (coverage) or sum (density). Both
+//! are order-independent, and every trajectory has its own seeded generator, so the image
+//! is bit-identical for any thread count and any schedule.
+//!
+//! The buffers are far larger than the caches, so points are not written where they land:
+//! each is appended to the bin of its buffer tile, and a full bin is written into its tile
+//! while the tile is in L2 ([`bins`]). The trajectories run as a [`PointStream`], compiled
+//! for FMA where the CPU has it ([`Isa`]); neither changes a bit of the image.
 //!
 //! Zoom views generate points everywhere and keep those in the window; `min_hits` asks for
 //! more rounds of fresh trajectories until the window has received that many points (or
 //! `max_points` were generated), which stays deterministic; `time_limit` caps wall time
 //! (its result then depends on the machine's speed).
 
+mod bins;
 mod coverage;
 mod density;
 
+use std::sync::{Mutex, MutexGuard};
 use std::time::Instant;
 
 use indicatif::ProgressBar;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::chaos::{MapSampler, Trajectory, is_bounded};
+use crate::chaos::{Isa, LANES, MapSampler, PointSink, PointStream};
 use crate::error::{Error, Result};
 use crate::model::affine::Map2;
 use crate::model::code::Framing;
@@ -197,14 +204,15 @@ pub(crate) struct PixelMap {
     /// Grid size in supersampled pixels.
     w: f64,
     h: f64,
-    width: u64,
+    /// Cells per row of the accumulator's grid.
+    row: u64,
     s: u64,
     /// `log2 s` when `s` is a power of two (shifts instead of divisions).
     shift: Option<u32>,
 }
 
 impl PixelMap {
-    fn new(win: &Framing, width: u32, height: u32, s: u32) -> Self {
+    fn new(win: &Framing, width: u32, height: u32, s: u32, row: u64) -> Self {
         let size = win.size();
         let sf = s as f64;
         PixelMap {
@@ -214,39 +222,82 @@ impl PixelMap {
             ky: height as f64 * sf / size[1],
             w: width as f64 * sf,
             h: height as f64 * sf,
-            width: width as u64,
+            row,
             s: s as u64,
             shift: s.is_power_of_two().then(|| s.trailing_zeros()),
         }
     }
 
-    /// Output pixel index and sub-pixel `(sx, sy)` of a point, or `None` outside the window
-    /// (and for non-finite points, whose comparisons fail).
+    /// The supersampled pixel `(x, y)` of a point, or `None` outside the window (and for
+    /// non-finite points, whose comparisons fail).
     #[inline(always)]
-    fn locate(&self, p: [f64; 2]) -> Option<(u64, u32, u32)> {
+    fn grid(&self, p: [f64; 2]) -> Option<(u64, u64)> {
         let fx = (p[0] - self.x0) * self.kx;
         let fy = (self.y1 - p[1]) * self.ky;
-        if fx >= 0.0 && fx < self.w && fy >= 0.0 && fy < self.h {
-            // Supersampled pixel, then output pixel and sub-pixel.
-            let (x, y) = (fx as u64, fy as u64);
-            let (px, py, sx, sy) = match self.shift {
-                Some(k) => {
-                    let m = (1u64 << k) - 1;
-                    (x >> k, y >> k, x & m, y & m)
-                }
-                None => (x / self.s, y / self.s, x % self.s, y % self.s),
-            };
-            Some((py * self.width + px, sx as u32, sy as u32))
+        if (fx >= 0.0) & (fx < self.w) & (fy >= 0.0) & (fy < self.h) {
+            // SAFETY: 0 ≤ fx < w ≤ 2^32 · 64 and likewise fy (neither is NaN, both
+            // comparisons held), so both truncate to integers an i64 represents.
+            let (x, y) = unsafe { (fx.to_int_unchecked::<i64>(), fy.to_int_unchecked::<i64>()) };
+            Some((x as u64, y as u64))
         } else {
             None
         }
     }
+
+    /// The sub-pixel cell of a point (row-major in the supersampled grid).
+    #[inline(always)]
+    fn subpixel_cell(&self, p: [f64; 2]) -> Option<u64> {
+        let (x, y) = self.grid(p)?;
+        Some(y * self.row + x)
+    }
+
+    /// The output-pixel cell of a point (row-major).
+    #[inline(always)]
+    fn pixel_cell(&self, p: [f64; 2]) -> Option<u64> {
+        let (x, y) = self.grid(p)?;
+        let (px, py) = match self.shift {
+            Some(k) => (x >> k, y >> k),
+            None => (x / self.s, y / self.s),
+        };
+        Some(py * self.row + px)
+    }
 }
 
-/// Accumulates points of one thread's trajectories.
+/// Bins a stream's in-window points.
+struct BinSink<'a, A> {
+    pm: PixelMap,
+    bins: bins::BinWriter<'a, A>,
+}
+
+impl<A: Accumulator> PointSink for BinSink<'_, A> {
+    #[inline(always)]
+    fn put(&mut self, p: [f64; 2]) {
+        let cell = if A::SUBPIXELS {
+            self.pm.subpixel_cell(p)
+        } else {
+            self.pm.pixel_cell(p)
+        };
+        if let Some(cell) = cell {
+            self.bins.push(cell);
+        }
+    }
+}
+
+/// Accumulates points of one thread's trajectories in a buffer of cells (bits or counts)
+/// cut into tiles of `2^tile_shift` contiguous cells.
 pub(crate) trait Accumulator: Send {
-    /// Records one in-window point.
-    fn add(&mut self, pixel: u64, sx: u32, sy: u32);
+    /// Whether cells are sub-pixels (else output pixels), row by row.
+    const SUBPIXELS: bool;
+    /// Bits per cell.
+    const CELL_BITS: u32;
+    /// Cells per row (at least the grid's width).
+    fn row_cells(&self) -> u64;
+    /// `log2` of the cells per tile.
+    fn tile_shift(&self) -> u32;
+    /// Number of tiles (the buffer is padded to whole tiles).
+    fn tiles(&self) -> usize;
+    /// Records one point on each cell `tile · 2^tile_shift + offset`.
+    fn write_tile(&mut self, tile: usize, offsets: &[u32]);
     /// Folds another accumulator of the same shape into this one.
     fn merge(&mut self, other: Self);
     /// Final pixel values in [0, 1].
@@ -260,7 +311,20 @@ pub fn render<M: Map2>(
     cfg: &RenderConfig,
     progress: Option<&ProgressBar>,
 ) -> Result<Raster> {
+    render_with_isa(maps, probs, cfg, progress, Isa::detect())
+}
+
+/// [`render`] with the chaos game compiled for `isa` (an error if this CPU lacks it). The
+/// image is the same on every instruction set; this exists to show it and to measure.
+pub fn render_with_isa<M: Map2>(
+    maps: &[M],
+    probs: &[f64],
+    cfg: &RenderConfig,
+    progress: Option<&ProgressBar>,
+    isa: Isa,
+) -> Result<Raster> {
     cfg.validate()?;
+    let isa = isa.checked()?;
     if maps.is_empty() {
         return Err(Error::Empty("the code has no maps".into()));
     }
@@ -284,15 +348,12 @@ pub fn render<M: Map2>(
         Some(z) => zoom_window(&base, z)?,
         None => base,
     };
+    let stream = PointStream::new(maps, &sampler, cfg.seed, 1.0, cfg.warmup)?.with_isa(isa)?;
     let (values, counts) = match cfg.mode {
-        RenderMode::Coverage => {
-            let s = cfg.supersample;
-            let words = coverage::words_for(cfg.width, cfg.height, s);
-            run_rounds(maps, &sampler, cfg, &window, progress, start, || {
-                coverage::Coverage::new(words, s)
-            })?
-        }
-        RenderMode::Density => run_rounds(maps, &sampler, cfg, &window, progress, start, || {
+        RenderMode::Coverage => run_rounds(&stream, cfg, &window, progress, start, || {
+            coverage::Coverage::new(cfg.width, cfg.height, cfg.supersample)
+        })?,
+        RenderMode::Density => run_rounds(&stream, cfg, &window, progress, start, || {
             density::Density::new(cfg.width, cfg.height)
         })?,
     };
@@ -314,17 +375,14 @@ pub fn render<M: Map2>(
 type RoundCounts = (u64, u64, u32, bool);
 
 fn run_rounds<M: Map2, A: Accumulator, F: Fn() -> A + Sync>(
-    maps: &[M],
-    sampler: &MapSampler,
+    stream: &PointStream<'_, M>,
     cfg: &RenderConfig,
     window: &Framing,
     progress: Option<&ProgressBar>,
     start: Instant,
     make: F,
 ) -> Result<(Vec<f32>, RoundCounts)> {
-    let pm = PixelMap::new(window, cfg.width, cfg.height, cfg.supersample);
     let t = cfg.trajectories_per_round();
-    let groups = rayon::current_num_threads().clamp(1, t);
     let max_points = if cfg.max_points > 0 {
         cfg.max_points
     } else {
@@ -333,124 +391,81 @@ fn run_rounds<M: Map2, A: Accumulator, F: Fn() -> A + Sync>(
     if let Some(pb) = progress {
         pb.set_length(cfg.points);
     }
-    let mut acc: Option<A> = None;
-    let (mut generated, mut hits, mut rounds, mut by_time) = (0u64, 0u64, 0u32, false);
-    loop {
+    // One binned buffer per worker thread, kept across rounds. Workers take batches of
+    // trajectories as they become free (a busy machine does not leave one thread waiting
+    // for another); which buffer a trajectory lands in does not change the merged image.
+    let threads = rayon::current_num_threads().max(1);
+    let accs: Vec<Mutex<bins::Binned<A>>> = (0..threads)
+        .map(|_| Mutex::new(bins::Binned::new(make())))
+        .collect();
+    let row = lock(&accs[0]).acc().row_cells();
+    let pm = PixelMap::new(window, cfg.width, cfg.height, cfg.supersample, row);
+    let batches = t.div_ceil(LANES);
+    let (mut generated, mut rounds, mut by_time) = (0u64, 0u32, false);
+    let hits = loop {
         let first = rounds as u64 * t as u64;
-        let results: Vec<Result<(A, u64)>> = (0..groups)
+        let results: Vec<Result<()>> = (0..batches)
             .into_par_iter()
-            .map(|g| {
-                let mut a = make();
-                let mut h = 0u64;
-                let (lo, hi) = (g * t / groups, (g + 1) * t / groups);
-                for i in (lo..hi).step_by(LANES) {
-                    let lanes = LANES.min(hi - i);
-                    let ns: Vec<u64> = (i..i + lanes)
-                        .map(|j| points_of(cfg.points, t, j))
-                        .collect();
-                    h += run_trajectories(maps, sampler, cfg, first + i as u64, &ns, &pm, &mut a)?;
-                    if let Some(pb) = progress {
-                        pb.inc(ns.iter().sum());
-                    }
+            .map(|b| {
+                let (lo, hi) = (b * LANES, ((b + 1) * LANES).min(t));
+                let ns: Vec<u64> = (lo..hi).map(|j| points_of(cfg.points, t, j)).collect();
+                let slot = rayon::current_thread_index().unwrap_or(0) % threads;
+                let mut acc = lock(&accs[slot]);
+                let mut sink = BinSink {
+                    pm,
+                    bins: acc.writer(),
+                };
+                stream.run(first + lo as u64, &ns, &mut sink)?;
+                if let Some(pb) = progress {
+                    pb.inc(ns.iter().sum());
                 }
-                Ok((a, h))
+                Ok(())
             })
             .collect();
-        for r in results {
-            let (a, h) = r?;
-            hits += h;
-            match &mut acc {
-                None => acc = Some(a),
-                Some(x) => x.merge(a),
-            }
-        }
+        // The first failing batch in trajectory order, whatever ran first.
+        results.into_iter().collect::<Result<()>>()?;
+        let hits: u64 = accs.iter().map(|a| lock(a).recorded()).sum();
         generated += cfg.points;
         rounds += 1;
         if cfg.min_hits == 0 || hits >= cfg.min_hits || generated >= max_points {
-            break;
+            break hits;
         }
         if let Some(limit) = cfg.time_limit
             && start.elapsed().as_secs_f64() > limit
         {
             by_time = true;
-            break;
+            break hits;
         }
         if let Some(pb) = progress {
             pb.inc_length(cfg.points);
         }
+    };
+    let mut parts: Vec<A> = accs
+        .into_par_iter()
+        .map(|a| {
+            a.into_inner()
+                .unwrap_or_else(|e| e.into_inner())
+                .into_inner()
+        })
+        .collect();
+    let mut acc = parts.remove(0);
+    for p in parts {
+        acc.merge(p);
     }
-    let values = acc
-        .expect("at least one round ran")
-        .finish(cfg.width, cfg.height);
+    let values = acc.finish(cfg.width, cfg.height);
     Ok((values, (generated, hits, rounds, by_time)))
+}
+
+/// Locks a worker's buffer (a panic elsewhere cannot leave it half-written: binning has no
+/// invariant a panic breaks, so a poisoned lock is taken as is).
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 /// Points kept by trajectory `i` of `t` when a round has `total` points.
 fn points_of(total: u64, t: usize, i: usize) -> u64 {
     let base = total / t as u64;
     base + u64::from((i as u64) < total % t as u64)
-}
-
-/// Trajectories stepped together: their chains are independent, so interleaving them hides
-/// the latency of each chain's multiply–adds.
-const LANES: usize = 4;
-
-/// Runs trajectories `first, first + 1, …` (one per entry of `ns`, at most [`LANES`]) into
-/// the accumulator, `ns[l]` kept points each; returns the in-window count.
-#[inline(never)]
-fn run_trajectories<M: Map2, A: Accumulator>(
-    maps: &[M],
-    sampler: &MapSampler,
-    cfg: &RenderConfig,
-    first: u64,
-    ns: &[u64],
-    pm: &PixelMap,
-    acc: &mut A,
-) -> Result<u64> {
-    let mut trs: Vec<Trajectory<'_, M>> = (0..ns.len() as u64)
-        .map(|l| Trajectory::new(maps, sampler, cfg.seed, first + l, 1.0))
-        .collect();
-    for tr in trs.iter_mut() {
-        tr.skip_steps(cfg.warmup);
-    }
-    let mut hits = 0u64;
-    let common = ns.iter().copied().min().unwrap_or(0);
-    if let [t0, t1, t2, t3] = trs.as_mut_slice() {
-        for _ in 0..common {
-            let ps = [t0.step(), t1.step(), t2.step(), t3.step()];
-            for p in ps {
-                if let Some((pix, sx, sy)) = pm.locate(p) {
-                    acc.add(pix, sx, sy);
-                    hits += 1;
-                }
-            }
-        }
-    }
-    let done = if trs.len() == LANES { common } else { 0 };
-    for (tr, &n) in trs.iter_mut().zip(ns) {
-        for _ in done..n {
-            if let Some((pix, sx, sy)) = pm.locate(tr.step()) {
-                acc.add(pix, sx, sy);
-                hits += 1;
-            }
-        }
-    }
-    for (l, tr) in trs.iter().enumerate() {
-        if !is_bounded(&tr.point()) {
-            // Escaping is absorbing for diverging codes: replay to find the first bad step.
-            let index = first + l as u64;
-            let mut replay = Trajectory::new(maps, sampler, cfg.seed, index, 1.0);
-            let mut step = 0usize;
-            while is_bounded(&replay.step()) {
-                step += 1;
-            }
-            return Err(Error::Divergent {
-                trajectory: index as usize,
-                step,
-            });
-        }
-    }
-    Ok(hits)
 }
 
 #[cfg(test)]
