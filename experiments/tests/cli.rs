@@ -239,3 +239,42 @@ fn resume_after_a_kill_matches_the_uninterrupted_run_from_any_directory() {
     let cfg = InversionConfig::load(&work.join("out/run/config.toml")).unwrap();
     assert!(cfg.target.image.unwrap().is_absolute());
 }
+
+/// A strategy registered in one line runs through `ifslab run` by its name: the written
+/// config has every one of its parameters, the log its statistics; an unknown strategy or
+/// parameter is named.
+#[test]
+fn any_registered_strategy_runs_from_a_config() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = tmp.path().join("gd.toml");
+    let base = "seed = 1\niterations = 4\n[target]\ncode = \"sierpinski\"\nsize = 32\n\
+                [model]\ninit = \"random\"\n[generator]\ntrajectories = 100\nlength = 40\n";
+    std::fs::write(
+        &cfg,
+        format!("{base}[strategy]\nkind = \"gd\"\nmomentum = 0.5\n"),
+    )
+    .unwrap();
+    let out = tmp.path().join("run");
+    let (ok, msg) = ifslab(&["run", cfg.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert!(ok, "{msg}");
+    let written = std::fs::read_to_string(out.join("config.toml")).unwrap();
+    assert!(
+        written.contains("kind = \"gd\"")
+            && written.contains("momentum = 0.5")
+            && written.contains("final_lr_factor = 1.0"),
+        "{written}"
+    );
+    let log = std::fs::read_to_string(out.join("log.csv")).unwrap();
+    assert!(log.lines().next().unwrap().contains("grad_norm"), "{log}");
+    assert_eq!(log.lines().count(), 5, "{log}");
+
+    for (strategy, want) in [
+        ("kind = \"cmaes\"\n", "unknown strategy `cmaes`"),
+        ("kind = \"gd\"\nmomentun = 0.5\n", "momentun"),
+    ] {
+        std::fs::write(&cfg, format!("{base}[strategy]\n{strategy}")).unwrap();
+        let o = tmp.path().join("bad");
+        let (ok, msg) = ifslab(&["run", cfg.to_str().unwrap(), "-o", o.to_str().unwrap()]);
+        assert!(!ok && msg.contains(want), "{msg}");
+    }
+}

@@ -22,6 +22,7 @@ use crate::adam::{Adam, AdamConfig};
 use crate::annealing::{Anneal, AnnealingConfig, SimulatedAnnealing};
 use crate::driver::{Differentiable, GradState, Params, RunSpec};
 use crate::error::{Error, Result};
+use crate::gd::{GdConfig, GradientDescent};
 use crate::hybrid::{Hybrid, HybridConfig};
 use crate::noisy::{NoisyAdam, NoisyConfig};
 
@@ -200,6 +201,7 @@ pub fn strategies<P: StrategyProblem>() -> Vec<StrategyEntry<P>> {
             SimulatedAnnealing::new(c, r.iterations, r.seed)
         }),
         StrategyEntry::new(|c: NoisyConfig, r| NoisyAdam::new(c, r.seed)),
+        StrategyEntry::new(|c: GdConfig, _| GradientDescent::new(c)),
     ]
 }
 
@@ -306,7 +308,9 @@ mod tests {
 
     #[test]
     fn unknown_kinds_and_fields_are_named() {
-        let e = resolve("cmaes", &toml::Table::new()).unwrap_err().to_string();
+        let e = resolve("cmaes", &toml::Table::new())
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("cmaes") && e.contains("hybrid"), "{e}");
         let mut t = toml::Table::new();
         t.insert("lr_typo".into(), toml::Value::Float(0.1));

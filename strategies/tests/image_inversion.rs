@@ -172,10 +172,8 @@ fn hybrid_beats_its_em_start_on_the_fern() {
 fn resume_is_bit_identical() {
     use argmin::core::observers::Observe;
     use argmin::core::{Error as ArgminError, KV, State};
-    use ifslab_strategies::annealing::AnnealingConfig;
     use ifslab_strategies::driver::GradState;
     use ifslab_strategies::hybrid::HybridConfig;
-    use ifslab_strategies::noisy::NoisyConfig;
 
     /// Fails the run at a given iteration, like a crash.
     struct Crash(u64);
@@ -190,19 +188,16 @@ fn resume_is_bit_identical() {
 
     let size = 32;
     let t = target("sierpinski", size);
-    let strategies = [
-        StrategyConfig::from(AdamConfig::default()),
-        StrategyConfig::from(HybridConfig {
-            anneal_every: 4,
-            annealing: AnnealingConfig {
-                candidates: 2,
-                ..AnnealingConfig::default()
-            },
-            ..HybridConfig::default()
-        }),
-        StrategyConfig::from(AnnealingConfig::default()),
-        StrategyConfig::from(NoisyConfig::default()),
-    ];
+    // Every registered strategy (a new one is covered as soon as it is registered); the
+    // hybrid anneals within these 20 iterations.
+    let strategies = ifslab_strategies::registry::kinds().into_iter().map(|k| {
+        let mut s = StrategyConfig::by_name(k).unwrap();
+        s.update(|h: &mut HybridConfig| {
+            h.anneal_every = 4;
+            h.annealing.candidates = 2;
+        });
+        s
+    });
     for strategy in strategies {
         let mut cfg = base_config(size, 20, strategy);
         cfg.generator.trajectories = 100;

@@ -7,11 +7,11 @@ use anyhow::Context;
 use ifslab::model::ParamKind;
 use ifslab_strategies::adam::AdamConfig;
 use ifslab_strategies::hybrid::HybridConfig;
-use ifslab_strategies::noisy::NoisyConfig;
 use ifslab_strategies::image::config::{
     GeneratorConfig, ModelConfig, RendererConfig, TargetConfig,
 };
 use ifslab_strategies::image::{InitKind, InversionConfig, Polarity, StrategyConfig};
+use ifslab_strategies::noisy::NoisyConfig;
 
 use crate::inversion::{CONFIG_FILE, run_and_report};
 

@@ -12,7 +12,7 @@
 use argmin::core::{Error as ArgminError, KV, Problem, Solver, State};
 use serde::{Deserialize, Serialize};
 
-use crate::driver::{Differentiable, GradState, kv_of, to_argmin, Params};
+use crate::driver::{Differentiable, GradState, Params, kv_of, to_argmin};
 use crate::error::{Error, Result};
 
 /// Adam's hyper-parameters (defaults: the chaotic-splatting paper's lr 1e-2).

@@ -19,7 +19,7 @@ use rand_distr::StandardNormal;
 use rand_xoshiro::Xoshiro256PlusPlus;
 use serde::{Deserialize, Serialize};
 
-use crate::driver::{Differentiable, GradState, to_argmin, Params};
+use crate::driver::{Differentiable, GradState, Params, to_argmin};
 use crate::error::{Error, Result};
 
 /// What annealing needs from a problem: a cheap cost on a chosen random stream, so several

@@ -419,10 +419,7 @@ impl InversionConfig {
             )));
         }
         in_section("loss", self.loss.validate().map_err(Error::from))?;
-        in_section(
-            "strategy",
-            self.strategy.validate(),
-        )
+        in_section("strategy", self.strategy.validate())
     }
 
     /// The chaos-game layout (its seed is set per iteration).

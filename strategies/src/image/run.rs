@@ -150,8 +150,7 @@ fn execute(
     ckpt: JsonCheckpoint,
     log: CsvLog,
     observers: Vec<Box<dyn Observe<GradState> + Send>>,
-) -> Result<(ImageProblem, GradState)>
-{
+) -> Result<(ImageProblem, GradState)> {
     let mut exec = Executor::new(problem, solver)
         .configure(|s| s.param(theta0).max_iters(iterations))
         .checkpointing(ckpt)
