@@ -2,7 +2,7 @@
 # Reproduction of "Learning Image Fractals Using Chaotic Differentiable Point Splatting"
 # at CPU scale: strategies compared on the same targets from random starts (the paper's
 # setting) and from an EM start (this project's addition). Writes results/.
-#   paper_repro/chaotic_splatting/run.sh            # ~2 h on 2 cores (3 seeds, 123 runs)
+#   paper_repro/chaotic_splatting/run.sh            # ~2.5 h on 2 quiet cores (3 seeds, 123 runs)
 #   IFSLAB=target/release/ifslab ITERS=400 SEEDS=0 paper_repro/chaotic_splatting/run.sh   # quicker
 #   RUN_GROUPS=random paper_repro/chaotic_splatting/run.sh   # only the random-start runs (or: em)
 set -euo pipefail
