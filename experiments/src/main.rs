@@ -1,9 +1,8 @@
 //! `ifslab`: render, sample and invert Iterated Function Systems from the command line.
+//! Arguments and progress bars only: what a run does is the `ifslab_experiments` library.
 
+mod bars;
 mod cmd;
-mod inversion;
-mod plot;
-mod progress;
 
 use clap::{Parser, Subcommand};
 

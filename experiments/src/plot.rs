@@ -23,7 +23,9 @@ pub fn ensure_font() {
 
 /// One named series of (x, y) points.
 pub struct Series<'a> {
+    /// Legend label.
     pub name: &'a str,
+    /// The (x, y) points, in drawing order.
     pub points: Vec<(f64, f64)>,
 }
 
@@ -148,7 +150,9 @@ pub fn scatter(
 
 /// One heat-map panel: values on a row-major `ys.len() × xs.len()` grid (rows along y).
 pub struct Heat<'a> {
+    /// Panel title.
     pub title: &'a str,
+    /// Row-major values.
     pub values: &'a [f64],
 }
 

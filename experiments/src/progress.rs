@@ -1,49 +1,49 @@
-//! Progress bars for long work (hidden when stderr is not a terminal).
+//! Progress of long work, reported through a callback: the library never draws; the
+//! binary shows bars (indicatif), a sweep may log, a notebook may print.
 
-use indicatif::{ProgressBar, ProgressStyle};
+use argmin::core::observers::Observe;
+use argmin::core::{Error as ArgminError, KV, State};
+use ifslab_strategies::driver::GradState;
 
-/// A bar counting `len` items of `what`.
-pub fn bar(len: u64, what: &str) -> ProgressBar {
-    let pb = ProgressBar::new(len);
-    pb.set_style(
-        ProgressStyle::with_template(&format!(
-            "{{spinner}} {what} [{{elapsed_precise}}] {{bar:40}} {{human_pos}}/{{human_len}} ({{per_sec}}, eta {{eta}})"
-        ))
-        .expect("valid template"),
-    );
-    pb
+/// Receives the progress of one piece of long work.
+pub trait Progress: Send {
+    /// The work starts: `len` steps of `what`.
+    fn start(&mut self, _what: &str, _len: u64) {}
+    /// `done` steps are finished; `message` says how it goes (e.g. the current loss).
+    fn advance(&mut self, _done: u64, _message: &str) {}
+    /// The work is over.
+    fn finish(&mut self) {}
 }
 
-/// An argmin observer that advances a progress bar and shows the current loss.
+/// Reports nothing.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Silent;
+
+impl Progress for Silent {}
+
+/// An argmin observer that reports every iteration (and its loss) to a [`Progress`].
 pub struct ProgressObserver {
-    bar: ProgressBar,
+    progress: Box<dyn Progress>,
 }
 
 impl ProgressObserver {
-    /// Observes into `bar` (its length is the run's iteration count).
-    pub fn new(bar: ProgressBar) -> Self {
-        ProgressObserver { bar }
+    /// Reports to `progress`, which has been started by the caller.
+    pub fn new(progress: Box<dyn Progress>) -> Self {
+        ProgressObserver { progress }
     }
 }
 
-impl argmin::core::observers::Observe<ifslab_strategies::driver::GradState> for ProgressObserver {
-    fn observe_iter(
-        &mut self,
-        state: &ifslab_strategies::driver::GradState,
-        _kv: &argmin::core::KV,
-    ) -> Result<(), argmin::core::Error> {
-        use argmin::core::State;
-        self.bar.set_position(state.get_iter() + 1);
-        self.bar
-            .set_message(format!("loss {:.5}", state.get_cost()));
+impl Observe<GradState> for ProgressObserver {
+    fn observe_iter(&mut self, state: &GradState, _kv: &KV) -> Result<(), ArgminError> {
+        self.progress.advance(
+            state.get_iter() + 1,
+            &format!("loss {:.5}", state.get_cost()),
+        );
         Ok(())
     }
 
-    fn observe_final(
-        &mut self,
-        _state: &ifslab_strategies::driver::GradState,
-    ) -> Result<(), argmin::core::Error> {
-        self.bar.finish_and_clear();
+    fn observe_final(&mut self, _state: &GradState) -> Result<(), ArgminError> {
+        self.progress.finish();
         Ok(())
     }
 }

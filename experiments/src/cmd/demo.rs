@@ -11,7 +11,7 @@ use ifslab_strategies::image::config::{
 };
 use ifslab_strategies::image::{InitKind, InversionConfig, StrategyConfig};
 
-use crate::inversion::run_and_report;
+use ifslab_experiments::runs::inversion::run_and_report;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -85,7 +85,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if a.output.join("checkpoint.json").exists() {
         std::fs::remove_file(a.output.join("checkpoint.json"))?;
     }
-    let s = run_and_report(&cfg, &a.output, false)?;
+    let s = run_and_report(
+        &cfg,
+        &a.output,
+        false,
+        Box::new(crate::bars::Bar::default()),
+    )?;
     // The verdict follows the score against the code's ground truth, not the hope.
     let verdict = match s.iou {
         v if v >= 0.9 => "recovered",

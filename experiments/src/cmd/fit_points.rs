@@ -21,8 +21,8 @@ use ifslab_strategies::em::{
 use serde_json::json;
 
 use super::resolve_code;
-use crate::plot::{Series, line_chart, scatter};
-use crate::progress;
+use crate::bars as progress;
+use ifslab_experiments::plot::{Series, line_chart, scatter};
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 pub enum Update {

@@ -13,7 +13,7 @@ use ifslab_strategies::image::config::{
 use ifslab_strategies::image::{InitKind, InversionConfig, Polarity, StrategyConfig};
 use ifslab_strategies::noisy::NoisyConfig;
 
-use crate::inversion::{CONFIG_FILE, run_and_report};
+use ifslab_experiments::runs::inversion::{CONFIG_FILE, run_and_report};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -90,7 +90,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
 }
 
 fn report(cfg: &InversionConfig, dir: &Path, resume: bool) -> anyhow::Result<()> {
-    let s = run_and_report(cfg, dir, resume)?;
+    let s = run_and_report(cfg, dir, resume, Box::new(crate::bars::Bar::default()))?;
     println!(
         "{}: {} iterations of {} in {:.1} s, {} → {}",
         dir.display(),

@@ -10,10 +10,10 @@ use ifslab_strategies::image::{
     Directions, ImageProblem, InversionConfig, LandscapeConfig, landscape,
 };
 
+use crate::bars::bar;
 use crate::cmd::resolve_code;
-use crate::inversion::{CONFIG_FILE, run_target};
-use crate::plot::{Heat, heatmaps};
-use crate::progress::bar;
+use ifslab_experiments::plot::{Heat, heatmaps};
+use ifslab_experiments::runs::inversion::{CONFIG_FILE, run_target};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {

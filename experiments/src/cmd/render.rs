@@ -7,7 +7,7 @@ use ifslab::render::image_io::BitDepth;
 use ifslab::render::{RenderConfig, RenderMode, View, Zoom, render};
 
 use super::resolve_code;
-use crate::progress;
+use crate::bars as progress;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {

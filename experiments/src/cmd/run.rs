@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use ifslab_strategies::image::InversionConfig;
 
-use crate::inversion::{output_dir, run_and_report};
+use ifslab_experiments::runs::inversion::{output_dir, run_and_report};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -21,7 +21,7 @@ pub struct Args {
 pub fn run(a: Args) -> anyhow::Result<()> {
     let cfg = InversionConfig::load(&a.config)?;
     let dir = output_dir(a.output, &cfg, "out/run");
-    let s = run_and_report(&cfg, &dir, a.resume)?;
+    let s = run_and_report(&cfg, &dir, a.resume, Box::new(crate::bars::Bar::default()))?;
     println!(
         "{}: {} iterations of {} in {:.1} s, {}",
         dir.display(),

@@ -28,8 +28,8 @@ use ifslab_strategies::fractal_coding::{
 use serde::Serialize;
 use serde_json::json;
 
-use crate::plot::{Series, line_chart};
-use crate::progress;
+use crate::bars as progress;
+use ifslab_experiments::plot::{Series, line_chart};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {

@@ -18,9 +18,9 @@ use ifslab_strategies::image::{
 use plotters::prelude::*;
 use serde::Serialize;
 
-use crate::cmd::resolve_code;
+use crate::codes::resolve_code;
 use crate::plot::{Series, ensure_font, line_chart};
-use crate::progress::{ProgressObserver, bar};
+use crate::progress::{Progress, ProgressObserver};
 
 /// The resolved config inside a run folder.
 pub const CONFIG_FILE: &str = "config.toml";
@@ -145,8 +145,15 @@ impl Summary {
     }
 }
 
-/// Runs (or resumes) the inversion of `cfg` into `dir` and writes every output.
-pub fn run_and_report(cfg: &InversionConfig, dir: &Path, resume: bool) -> anyhow::Result<Summary> {
+/// Runs (or resumes) the inversion of `cfg` into `dir` and writes every output: the
+/// resolved config, the framed target, checkpoints and `log.csv` as it goes, then the code,
+/// renders, zoom strip, loss plot and `summary.json`. Iterations are reported to `progress`.
+pub fn run_and_report(
+    cfg: &InversionConfig,
+    dir: &Path,
+    resume: bool,
+    mut progress: Box<dyn Progress>,
+) -> anyhow::Result<Summary> {
     let size = cfg.target.size;
     let target = if resume {
         run_target(cfg, dir)?
@@ -167,21 +174,14 @@ pub fn run_and_report(cfg: &InversionConfig, dir: &Path, resume: bool) -> anyhow
         BitDepth::Eight,
         false,
     )?;
-    let pb = bar(cfg.iterations, "iterations");
-    pb.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{spinner} {prefix} [{elapsed_precise}] {bar:40} {pos}/{len} ({per_sec}, eta {eta}) {msg}",
-        )
-        .expect("valid template"),
-    );
-    pb.set_prefix(cfg.strategy.name().to_owned());
+    progress.start(cfg.strategy.name(), cfg.iterations);
     let started = Instant::now();
     let outcome = run_inversion(
         cfg,
         target.clone(),
         dir,
         resume,
-        vec![Box::new(ProgressObserver::new(pb))],
+        vec![Box::new(ProgressObserver::new(progress))],
     )?;
     let (metrics, lpips_metric_note) = write_outputs(cfg, dir, &outcome, &target)?;
     let summary = Summary {

@@ -1,0 +1,3 @@
+//! Runs as library calls: config → run folder.
+
+pub mod inversion;
