@@ -123,9 +123,15 @@ fn recentring_keeps_the_code_and_matches_the_data_moments() {
         .sum::<f64>()
         / (2.0 * data.len() as f64))
         .sqrt();
-    assert!((mu[0] - 0.5).abs() < 1e-12 && (mu[1] - 1.0 / 3.0).abs() < 1e-12, "{mu}");
+    assert!(
+        (mu[0] - 0.5).abs() < 1e-12 && (mu[1] - 1.0 / 3.0).abs() < 1e-12,
+        "{mu}"
+    );
     assert!((mu[0] - mean[0]).abs() < 0.02 && (mu[1] - mean[1]).abs() < 0.02);
-    assert!((sigma / rms - 1.0).abs() < 0.05, "σ {sigma} against the sample's {rms}");
+    assert!(
+        (sigma / rms - 1.0).abs() < 0.05,
+        "σ {sigma} against the sample's {rms}"
+    );
 
     let moved = model.recentred();
     for (a, b) in moved.data_space_maps().iter().zip(model.data_space_maps()) {

@@ -20,8 +20,9 @@
 //! between pre-selection stages and every 100 main iterations: EM itself only moves
 //! rotations locally, and nearly symmetric attractors trap it with a piece turned the wrong
 //! way. A run has converged when at least 95% of the depth weight sits on depth D.
-//! [`EmConfig::paper`] is the paper's algorithm; the defaults differ where measurements
-//! showed far more runs converging (`paper_repro/ifs_em/README.md`). [`gmm`] fits isotropic
+//! [`EmConfig::paper`] is the paper's algorithm; the defaults add the re-orientation search
+//! and [`EmModel::recentred`], which measurably make far more runs converge, and differ in
+//! three choices that measured neutral (`paper_repro/ifs_em/README.md`). [`gmm`] fits isotropic
 //! and full-covariance Gaussian mixtures as held-out likelihood baselines; [`data`] loads CSV
 //! and `.npy` point clouds of any dimension.
 //!

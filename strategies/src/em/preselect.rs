@@ -3,19 +3,19 @@
 //!
 //! EM from a random start often settles where the maps do not reproduce the data's
 //! self-similarity. The paper trains each candidate for 100 iterations at depth 3 and keeps
-//! the one with the highest mean depth Σ d·v_d. ifslab's default differs in three measured
-//! ways (`paper_repro/ifs_em/README.md`), each switchable back to the paper's choice:
+//! the one with the highest mean depth Σ d·v_d. ifslab's default differs in three ways,
+//! each switchable back to the paper's choice; of these only the re-orientation changed the
+//! share of converged runs in what was measured (`paper_repro/ifs_em/README.md`):
 //!
 //! - **Curriculum** ([`EmConfig::curriculum`]): the iterations are spread over depths
 //!   1, 2, …, `preselect_depth` in turn. At depth 1 the model is a constrained Gaussian
 //!   mixture that places the K pieces; each deeper stage then only has to orient and refine
-//!   them. Trained at depth 3 from the start, the pieces' places and orientations are
-//!   sought at once, and a candidate often ends with one map covering two pieces.
+//!   them, instead of seeking the pieces' places and orientations at once.
 //! - **Re-orientation** ([`crate::em::reorient`]) at the start of every stage from depth 2 on
 //!   (half-way through the single stage when the curriculum is off).
 //! - **Selection by likelihood** ([`PreselectBy::LogLikelihood`]): the mean log-likelihood of
-//!   a fixed set of evaluation points. At depth 3 most candidates reach a mean depth near 3,
-//!   right or wrong, so the mean depth hardly separates them; the likelihood does.
+//!   a fixed set of evaluation points: at depth 3 most candidates reach a mean depth near
+//!   3, right or wrong (the paper suspects mean depth is a poor criterion for Koch, K = 4).
 //!
 //! Candidates are trained in parallel, each from its own seeded generators.
 //!
