@@ -265,7 +265,7 @@ fn load_truth(a: &Args, dim: usize) -> anyhow::Result<Option<Truth>> {
     let mut scales = Vec::new();
     for (i, m) in code.maps.iter().enumerate() {
         let d = m.m.determinant();
-        if !(d > 0.0) {
+        if d.is_nan() || d <= 0.0 {
             bail!("--truth {spec}: map {i} is not a similitude with a proper rotation");
         }
         scales.push(d.sqrt());
@@ -316,7 +316,7 @@ fn tolerant_agreement(a: &[bool], b: &[bool], n: usize) -> f64 {
 /// largest difference of the sorted scales (∞ when the map counts differ).
 fn compare(truth: &Truth, model: &EmModel) -> anyhow::Result<(f64, f64)> {
     let code = model.to_code(None)?;
-    let (mask, _) = coverage(&code, truth.window.clone(), 0)?;
+    let (mask, _) = coverage(&code, truth.window, 0)?;
     let iou = tolerant_agreement(&truth.mask, &mask, TRUTH_SIZE as usize);
     let mut scales: Vec<f64> = model.components.iter().map(|c| c.s).collect();
     scales.sort_by(f64::total_cmp);

@@ -196,7 +196,8 @@ impl EmModel {
             b += &c.t * *w;
             contraction += w * c.s * c.s;
         }
-        if !(contraction < 1.0) || self.components.iter().any(|c| c.s >= 1.0) {
+        if contraction.is_nan() || contraction >= 1.0 || self.components.iter().any(|c| c.s >= 1.0)
+        {
             return None;
         }
         let mu = a.lu().solve(&b)?;
@@ -224,7 +225,7 @@ impl EmModel {
         let Some((mu, sigma)) = self.invariant_moments() else {
             return self.clone();
         };
-        if !(sigma > 0.0) {
+        if sigma.is_nan() || sigma <= 0.0 {
             return self.clone();
         }
         let h = self.dim();
