@@ -22,7 +22,8 @@
 //! way. A run has converged when at least 95% of the depth weight sits on depth D.
 //! [`EmConfig::paper`] is the paper's algorithm; the defaults add the re-orientation search
 //! and [`EmModel::recentred`], which measurably make far more runs converge, and differ in
-//! three choices that measured neutral (`paper_repro/ifs_em/README.md`). [`gmm`] fits isotropic
+//! three pre-selection and M-step choices (`paper_repro/ifs_em/README.md` measures each).
+//! [`gmm`] fits isotropic
 //! and full-covariance Gaussian mixtures as held-out likelihood baselines; [`data`] loads CSV
 //! and `.npy` point clouds of any dimension.
 //!
