@@ -33,6 +33,7 @@ variant() { # label, data name, then fit-points arguments
 
 sample triangle-10k triangle -n 10000 --seed 1
 sample equilateral-10k equilateral -n 10000 --seed 6
+sample random4 random --maps 4 --code-seed 2 -n 10000 --seed 10
 
 K3="--k 3 --depth 6"
 variant defaults triangle-10k $K3
@@ -42,6 +43,8 @@ variant by-mean-depth triangle-10k $K3 --preselect-by mean-depth
 variant no-reorient triangle-10k $K3 --reorient 0
 variant no-recentre triangle-10k $K3 --no-recentre
 variant preselect-20 triangle-10k $K3 --preselect-iterations 20
+variant paper-preselect triangle-10k $K3 --preselect-schedule fixed --preselect-by mean-depth
+variant paper-preselect random4 --k 4 --depth 6 --preselect-schedule fixed --preselect-by mean-depth
 variant defaults equilateral-10k $K3
 variant outermost equilateral-10k $K3 --update outermost
 
