@@ -163,6 +163,7 @@ fn perturbed_sierpinski_code_converges_back() {
         batch_size: 500,
         stream: 11,
         heldout: None,
+        reorient: None,
     };
     let (model, _) = train(
         start,

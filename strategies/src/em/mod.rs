@@ -14,11 +14,18 @@
 //!    from its stationarity equation); then the post-transform the same way.
 //!
 //! [`init`] draws K random fixed points on the unit sphere with scale ½ and Haar rotations;
-//! [`preselect`] trains a pool of such starts briefly at depth 3 and keeps the one with the
-//! highest mean depth; [`driver::fit`] then trains it at depth D. A run has converged when
-//! at least 95% of the depth weight sits on depth D. [`gmm`] fits isotropic and
-//! full-covariance Gaussian mixtures as held-out likelihood baselines; [`data`] loads CSV and
-//! `.npy` point clouds of any dimension.
+//! [`preselect`] trains a pool of such starts briefly — by default through depths 1, 2, 3
+//! in turn — and keeps the best; [`driver::fit`] then trains it at depth D. [`reorient`]
+//! turns each component's piece in place to the orientation with the highest likelihood,
+//! between pre-selection stages and every 100 main iterations: EM itself only moves
+//! rotations locally, and nearly symmetric attractors trap it with a piece turned the wrong
+//! way. A run has converged when at least 95% of the depth weight sits on depth D.
+//! [`EmConfig::paper`] is the paper's algorithm; the defaults add the re-orientation search
+//! and [`EmModel::recentred`], which measurably make far more runs converge, and differ in
+//! three pre-selection and M-step choices (`paper_repro/ifs_em/README.md` measures each).
+//! [`gmm`] fits isotropic
+//! and full-covariance Gaussian mixtures as held-out likelihood baselines; [`data`] loads CSV
+//! and `.npy` point clouds of any dimension.
 //!
 //! ```no_run
 //! use ifslab_strategies::em::{EmConfig, PointSet, fit};
@@ -45,13 +52,15 @@ pub mod init;
 pub mod model;
 pub mod mstep;
 pub mod preselect;
+pub mod reorient;
 
 pub use data::PointSet;
 pub use driver::{
-    EmConfig, EmFit, Event, IterationRecord, Schedule, StepInfo, code_count, em_step, fit, fit_all,
-    train,
+    EmConfig, EmFit, Event, IterationRecord, ReorientStep, Schedule, StepInfo, code_count, em_step,
+    fit, fit_all, train,
 };
 pub use gmm::{Covariance, Gmm, GmmConfig};
 pub use model::{CodeTable, EmModel};
 pub use mstep::{ComponentUpdate, Degeneracy, MStepConfig, Part, proper_rotation};
-pub use preselect::Candidate;
+pub use preselect::{Candidate, PreselectBy};
+pub use reorient::{ReorientConfig, Reorientation};

@@ -182,6 +182,70 @@ impl EmModel {
         CodeTable::build(self, false)
     }
 
+    /// Mean μ and RMS spread σ (per coordinate) of the IFS's invariant measure, in the model
+    /// frame: μ solves `μ = Σ_k w_k S_k(μ)`, and the second moment about μ is
+    /// `M = Σ_k w_k ‖S_k(μ) − μ‖² / (1 − Σ_k w_k s_k²)`, σ = √(M/H). Needs every `s_k < 1`
+    /// (then `I − Σ w_k s_k R_k` is invertible); `None` otherwise.
+    pub fn invariant_moments(&self) -> Option<(DVector<f64>, f64)> {
+        let h = self.dim();
+        let mut a = DMatrix::<f64>::identity(h, h);
+        let mut b = DVector::<f64>::zeros(h);
+        let mut contraction = 0.0;
+        for (c, w) in self.components.iter().zip(&self.weights) {
+            a -= &c.r * (c.s * w);
+            b += &c.t * *w;
+            contraction += w * c.s * c.s;
+        }
+        if contraction.is_nan() || contraction >= 1.0 || self.components.iter().any(|c| c.s >= 1.0)
+        {
+            return None;
+        }
+        let mu = a.lu().solve(&b)?;
+        let spread: f64 = self
+            .components
+            .iter()
+            .zip(&self.weights)
+            .map(|(c, w)| w * (c.apply(&mu) - &mu).norm_squared())
+            .sum();
+        let sigma = (spread / (1.0 - contraction) / h as f64).sqrt();
+        (sigma.is_finite() && mu.iter().all(|v| v.is_finite())).then_some((mu, sigma))
+    }
+
+    /// The same IFS in data space with the model frame moved so that the depth-0 Gaussian
+    /// `P(N(0, I))` has the invariant measure's mean and spread: `P ← P ∘ G`,
+    /// `S_k ← G⁻¹ ∘ S_k ∘ G` with `G(x) = σ·x + μ` (see [`EmModel::invariant_moments`]).
+    ///
+    /// Every code's Gaussian is the base Gaussian pushed through the data-space maps, so the
+    /// base sets the width of the deepest Gaussians. After a shallow pre-selection that width
+    /// can be far from the attractor's, and EM at depth D then settles with depth weight
+    /// split between D and D − 1 although the maps are right; matching the base to the
+    /// attractor's moments removes that equilibrium. Returns the model unchanged when the
+    /// moments are undefined (a scale ≥ 1) or degenerate (σ = 0).
+    pub fn recentred(&self) -> EmModel {
+        let Some((mu, sigma)) = self.invariant_moments() else {
+            return self.clone();
+        };
+        if sigma.is_nan() || sigma <= 0.0 {
+            return self.clone();
+        }
+        let h = self.dim();
+        let g = Similitude {
+            s: sigma,
+            r: DMatrix::identity(h, h),
+            t: mu,
+        };
+        let gi = inverse(&g);
+        EmModel {
+            components: self
+                .components
+                .iter()
+                .map(|c| gi.compose(&c.compose(&g)))
+                .collect(),
+            post: self.post.compose(&g),
+            ..self.clone()
+        }
+    }
+
     /// The conjugated maps `P ∘ S_k ∘ P⁻¹`: the IFS in data space.
     pub fn data_space_maps(&self) -> Vec<Similitude> {
         let p = &self.post;
