@@ -15,7 +15,7 @@
 //!
 //! [`init`] draws K random fixed points on the unit sphere with scale ½ and Haar rotations;
 //! [`preselect`] trains a pool of such starts briefly — by default through depths 1, 2, 3
-//! in turn — and keeps the best; [`driver::fit`] then trains it at depth D. [`reorient`]
+//! in turn — and keeps the best; [`fit()`] then trains it at depth D. [`reorient`]
 //! turns each component's piece in place to the orientation with the highest likelihood,
 //! between pre-selection stages and every 100 main iterations: EM itself only moves
 //! rotations locally, and nearly symmetric attractors trap it with a piece turned the wrong
@@ -44,23 +44,24 @@
 //! - S. Umeyama, *Least-squares estimation of transformation parameters between two point
 //!   patterns*, IEEE TPAMI 13(4), 1991.
 
+pub mod config;
 pub mod data;
-pub mod driver;
 pub mod estep;
+pub mod fit;
 pub mod gmm;
 pub mod init;
 pub mod model;
 pub mod mstep;
 pub mod preselect;
 pub mod reorient;
+pub mod train;
 
+pub use config::{EmConfig, MAX_CODES, PreselectBy, code_count};
 pub use data::PointSet;
-pub use driver::{
-    EmConfig, EmFit, Event, IterationRecord, ReorientStep, Schedule, StepInfo, code_count, em_step,
-    fit, fit_all, train,
-};
+pub use fit::{EmFit, Event, check_data, fit, fit_all};
 pub use gmm::{Covariance, Gmm, GmmConfig};
 pub use model::{CodeTable, EmModel};
 pub use mstep::{ComponentUpdate, Degeneracy, MStepConfig, Part, proper_rotation};
-pub use preselect::{Candidate, PreselectBy};
+pub use preselect::Candidate;
 pub use reorient::{ReorientConfig, Reorientation};
+pub use train::{IterationRecord, ReorientStep, Schedule, StepInfo, em_step, train};

@@ -31,23 +31,13 @@ use serde::{Deserialize, Serialize};
 
 use ifslab::chaos::{mix_seed, trajectory_rng};
 
+use crate::em::config::{EmConfig, PreselectBy, stream};
 use crate::em::data::PointSet;
-use crate::em::driver::{EmConfig, Schedule, stream, train};
 use crate::em::init::{normalising_post, random_model};
 use crate::em::model::EmModel;
 use crate::em::reorient::reorient;
+use crate::em::train::{Schedule, train};
 use crate::error::{Error, Result};
-
-/// How the pre-selection winner is chosen.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum PreselectBy {
-    /// The highest mean log-likelihood of the evaluation points (default).
-    #[default]
-    LogLikelihood,
-    /// The highest mean depth Σ d·v_d (the paper's criterion).
-    MeanDepth,
-}
 
 /// One pre-selection candidate's outcome.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -13,7 +13,6 @@ use serde::{Deserialize, Serialize};
 use crate::driver::Params;
 use crate::error::{Error, Result};
 use crate::hybrid::HybridConfig;
-use crate::image::init::InitKind;
 use crate::image::target::Polarity;
 use crate::registry;
 
@@ -144,6 +143,17 @@ impl RendererConfig {
             None => self.sigma,
         }
     }
+}
+
+/// How the initial code is chosen when no `init_code` is given.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum InitKind {
+    /// An Anderson–Farrell random code (the paper's start).
+    Random,
+    /// EM on points sampled from the target image (the reliable start).
+    #[default]
+    Em,
 }
 
 /// The strategy and its hyper-parameters: any strategy of [`crate::registry`], by its

@@ -14,22 +14,10 @@ use ifslab::model::{Affine2, IfsCode, Parameterisation, library};
 use nalgebra::{Matrix2, Vector2};
 use rand::Rng;
 use rand_distr::StandardNormal;
-use serde::{Deserialize, Serialize};
 
 use crate::em::{EmConfig, PointSet, fit};
 use crate::error::{Error, Result};
-use crate::image::config::InversionConfig;
-
-/// How the initial code is chosen when no `init_code` is given.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum InitKind {
-    /// An Anderson–Farrell random code (the paper's start).
-    Random,
-    /// EM on points sampled from the target image (the reliable start).
-    #[default]
-    Em,
-}
+use crate::image::config::{InitKind, InversionConfig};
 
 /// Points drawn from a `size × size` image with probability ∝ intensity, jittered inside
 /// their pixel, in coordinates `[−1, 1]²` (y up).

@@ -18,8 +18,8 @@ pub mod problem;
 pub mod run;
 pub mod target;
 
-pub use config::{InversionConfig, StrategyConfig, TargetConfig};
-pub use init::{InitKind, initial_theta};
+pub use config::{InitKind, InversionConfig, StrategyConfig, TargetConfig};
+pub use init::initial_theta;
 pub use landscape::{Directions, Landscape, LandscapeConfig, landscape};
 pub use problem::ImageProblem;
 pub use run::{InversionOutcome, ensure_new_run_dir, run_inversion};
