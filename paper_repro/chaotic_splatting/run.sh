@@ -59,14 +59,8 @@ kind = "annealing"'
 noisy='[strategy]
 kind = "noisy"'
 hybrid_cold='[strategy]
-kind = "hybrid"
-anneal_every = 100
-[strategy.adam]
-final_lr_factor = 0.1
-[strategy.annealing]
-candidates = 10
-noise = 0.05
-temperature = 0.02'
+kind = "cold_hybrid"
+anneal_every = 100'
 
 # Where the paper's text and its reference code differ, the other reading, and this
 # project's coarse-to-fine σ (1 → 0.4 supersampled pixels over the run).

@@ -23,7 +23,7 @@ use crate::annealing::{Anneal, AnnealingConfig, SimulatedAnnealing};
 use crate::driver::{Differentiable, GradState, Params, RunSpec};
 use crate::error::{Error, Result};
 use crate::gd::{GdConfig, GradientDescent};
-use crate::hybrid::{Hybrid, HybridConfig};
+use crate::hybrid::{ColdHybridConfig, Hybrid, HybridConfig};
 use crate::noisy::{NoisyAdam, NoisyConfig};
 
 /// A problem every registered strategy can run on: a loss with its gradient, and a cheap
@@ -196,6 +196,7 @@ impl<P: StrategyProblem> StrategyEntry<P> {
 pub fn strategies<P: StrategyProblem>() -> Vec<StrategyEntry<P>> {
     vec![
         StrategyEntry::new(|c: HybridConfig, r| Hybrid::new(c, r.iterations, r.seed)),
+        StrategyEntry::new(|c: ColdHybridConfig, r| Hybrid::new(c.0, r.iterations, r.seed)),
         StrategyEntry::new(|c: AdamConfig, _| Adam::new(c)),
         StrategyEntry::new(|c: AnnealingConfig, r| {
             SimulatedAnnealing::new(c, r.iterations, r.seed)
@@ -242,8 +243,13 @@ pub fn stats(kind: &str) -> Result<&'static [&'static str]> {
     Ok(find::<ParamsOnly>(kind)?.stats)
 }
 
+/// `C` from a table laid over `C::default()` (nested tables merged key by key), so a
+/// strategy's own defaults fill what a config leaves out even when they differ from its
+/// fields' types' defaults (`cold_hybrid`).
 fn parse<C: Params>(t: &toml::Table) -> Result<C> {
-    let c: C = toml::Value::Table(t.clone())
+    let mut full = to_table(&C::default())?;
+    overlay(&mut full, t);
+    let c: C = toml::Value::Table(full)
         .try_into()
         .map_err(|e: toml::de::Error| {
             Error::InvalidInput(format!(
@@ -254,6 +260,17 @@ fn parse<C: Params>(t: &toml::Table) -> Result<C> {
         })?;
     c.validate()?;
     Ok(c)
+}
+
+fn overlay(base: &mut toml::Table, top: &toml::Table) {
+    for (k, v) in top {
+        match (base.get_mut(k), v) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(t)) => overlay(b, t),
+            _ => {
+                base.insert(k.clone(), v.clone());
+            }
+        }
+    }
 }
 
 fn to_table<C: Serialize>(c: &C) -> Result<toml::Table> {
@@ -304,6 +321,18 @@ mod tests {
             assert_eq!(resolve(k, &d).unwrap(), d, "{k}");
             assert_eq!(resolve(k, &toml::Table::new()).unwrap(), d, "{k}");
         }
+    }
+
+    #[test]
+    fn a_strategy_s_own_defaults_fill_what_a_config_leaves_out() {
+        let mut t = toml::Table::new();
+        t.insert("anneal_every".into(), toml::Value::Integer(100));
+        let r = resolve("cold_hybrid", &t).unwrap();
+        assert_eq!(r["anneal_every"].as_integer(), Some(100));
+        assert_eq!(r["annealing"]["temperature"].as_float(), Some(0.02));
+        assert_eq!(r["adam"]["final_lr_factor"].as_float(), Some(0.1));
+        let paper = resolve("hybrid", &t).unwrap();
+        assert_eq!(paper["annealing"]["temperature"].as_float(), Some(1.0));
     }
 
     #[test]

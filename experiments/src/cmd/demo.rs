@@ -5,7 +5,7 @@
 
 use std::path::PathBuf;
 
-use ifslab_strategies::hybrid::HybridConfig;
+use ifslab_strategies::hybrid::{ColdHybridConfig, HybridConfig};
 use ifslab_strategies::image::config::{
     GeneratorConfig, ModelConfig, RendererConfig, TargetConfig,
 };
@@ -71,10 +71,10 @@ pub fn demo_config(a: &Args) -> anyhow::Result<InversionConfig> {
         },
         loss: Default::default(),
         // Cold annealing: the EM fit is already in the right basin.
-        strategy: StrategyConfig::new(&HybridConfig {
+        strategy: StrategyConfig::new(&ColdHybridConfig(HybridConfig {
             anneal_every: 100,
             ..HybridConfig::from_good_start()
-        }),
+        })),
     };
     cfg.validate()?;
     Ok(cfg)

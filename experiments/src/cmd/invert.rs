@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use ifslab::model::ParamKind;
 use ifslab_strategies::adam::AdamConfig;
-use ifslab_strategies::hybrid::HybridConfig;
+use ifslab_strategies::hybrid::{ColdHybridConfig, HybridConfig};
 use ifslab_strategies::image::config::{
     GeneratorConfig, ModelConfig, RendererConfig, TargetConfig,
 };
@@ -32,8 +32,9 @@ pub struct Args {
     /// Optimisation iterations.
     #[arg(long, default_value_t = 2000)]
     pub iters: u64,
-    /// hybrid | adam | annealing | noisy. The hybrid's annealing is cold (τ₀ 0.02, noise 0.05)
-    /// from an EM start and the paper's (τ₀ 1, noise 0.2) from a random one.
+    /// Any registered strategy (hybrid, cold_hybrid, adam, annealing, noisy, gd). `hybrid`
+    /// from an EM start means `cold_hybrid` (τ₀ 0.02, noise 0.05), from a random one the
+    /// paper's (τ₀ 1, noise 0.2).
     #[arg(long, default_value = "hybrid")]
     pub strategy: String,
     /// Side of the (square) target and render in pixels.
@@ -123,13 +124,14 @@ fn config_from_flags(a: &Args) -> anyhow::Result<InversionConfig> {
     };
     let mut strategy = match (a.strategy.as_str(), init) {
         // From an EM fit the paper's hot annealing would throw the fit away.
-        ("hybrid", InitKind::Em) => StrategyConfig::new(&HybridConfig::from_good_start()),
+        ("hybrid", InitKind::Em) => StrategyConfig::new(&ColdHybridConfig::default()),
         (name, _) => StrategyConfig::by_name(name)?,
     };
     if let Some(lr) = a.lr {
         let applied = strategy.update(|c: &mut AdamConfig| c.lr = lr)
             || strategy.update(|c: &mut NoisyConfig| c.adam.lr = lr)
-            || strategy.update(|c: &mut HybridConfig| c.adam.lr = lr);
+            || strategy.update(|c: &mut HybridConfig| c.adam.lr = lr)
+            || strategy.update(|c: &mut ColdHybridConfig| c.0.adam.lr = lr);
         anyhow::ensure!(
             applied,
             "--lr applies to adam, noisy and hybrid, not to {}",
@@ -138,7 +140,8 @@ fn config_from_flags(a: &Args) -> anyhow::Result<InversionConfig> {
     }
     if let Some(every) = a.anneal_every {
         anyhow::ensure!(
-            strategy.update(|c: &mut HybridConfig| c.anneal_every = every),
+            strategy.update(|c: &mut HybridConfig| c.anneal_every = every)
+                || strategy.update(|c: &mut ColdHybridConfig| c.0.anneal_every = every),
             "--anneal-every applies to hybrid, not to {}",
             strategy.name()
         );

@@ -93,6 +93,27 @@ impl HybridConfig {
     }
 }
 
+/// The hybrid started from a good code (an EM fit): the same strategy with
+/// [`HybridConfig::from_good_start`] as its defaults, under its own name (`kind =
+/// "cold_hybrid"`) so configs and commands name the recipe instead of spelling it out.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(transparent)]
+pub struct ColdHybridConfig(pub HybridConfig);
+
+impl Default for ColdHybridConfig {
+    fn default() -> Self {
+        ColdHybridConfig(HybridConfig::from_good_start())
+    }
+}
+
+impl Params for ColdHybridConfig {
+    const KIND: &'static str = "cold_hybrid";
+    const STATS: &'static [&'static str] = HybridConfig::STATS;
+    fn validate(&self) -> Result<()> {
+        self.0.validate()
+    }
+}
+
 /// Adam with annealing phases.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Hybrid {
