@@ -39,6 +39,9 @@ impl Map2 for Sinusoidal {
 }
 
 impl DiffMap2 for Sinusoidal {
+    // `PARAMS` is left at `None`, so the backward scan finds each map's gradient through the
+    // offsets table: the path of map types whose parameter count varies from map to map.
+
     fn n_params(&self) -> usize {
         7
     }

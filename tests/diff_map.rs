@@ -228,3 +228,50 @@ fn the_op_refuses_bad_arguments() {
     let p = proto.apply([1.0, 2.0]);
     assert_eq!(p, [1.0, 2.0]);
 }
+
+/// An affine map that declares a wrong fixed parameter count: the backward scan must notice
+/// that the declared stride does not match the maps' offsets and use the offsets.
+#[derive(Clone, Copy, Debug)]
+struct MisdeclaredAffine(Affine2);
+
+impl Map2 for MisdeclaredAffine {
+    fn apply(&self, p: [f64; 2]) -> [f64; 2] {
+        self.0.apply(p)
+    }
+}
+
+impl DiffMap2 for MisdeclaredAffine {
+    const PARAMS: Option<usize> = Some(4);
+
+    fn n_params(&self) -> usize {
+        6
+    }
+    fn write_params(&self, out: &mut [f64]) {
+        self.0.write_params(out)
+    }
+    fn set_params(&mut self, p: &[f64]) {
+        self.0.set_params(p)
+    }
+    fn vjp_point(&self, x: [f64; 2], lambda: [f64; 2]) -> [f64; 2] {
+        self.0.vjp_point(x, lambda)
+    }
+    fn vjp_params(&self, x: [f64; 2], lambda: [f64; 2], grad: &mut [f64]) {
+        self.0.vjp_params(x, lambda, grad)
+    }
+}
+
+#[test]
+fn a_misdeclared_parameter_count_falls_back_to_offsets() {
+    let cfg = config();
+    let affine: Vec<Affine2> = similitudes().iter().map(Similitude2::to_affine).collect();
+    let wrapped: Vec<MisdeclaredAffine> = affine.iter().copied().map(MisdeclaredAffine).collect();
+    let w: Vec<f64> = (0..cfg.width * cfg.height)
+        .map(|i| (i % 13) as f64 / 13.0 - 0.4)
+        .collect();
+    let (_, tape) = splat::forward::<f64>(&cfg, &affine, 5).unwrap();
+    let (_, tape_w) = splat::forward::<f64>(&cfg, &wrapped, 5).unwrap();
+    let g = splat::backward(&cfg, &affine, &tape, &w).unwrap();
+    let g_w = splat::backward(&cfg, &wrapped, &tape_w, &w).unwrap();
+    assert!(g.iter().any(|v| v.abs() > 1e-3));
+    assert_eq!(g, g_w);
+}

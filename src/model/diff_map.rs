@@ -31,6 +31,13 @@ use crate::model::affine::{Affine2, Map2};
 /// Everything is `#[inline]`-friendly and monomorphised by the splatter: a map type is a
 /// type parameter of the hot loops, never a trait object.
 pub trait DiffMap2: Map2 + Clone {
+    /// The parameter count, when every map of the type has the same one (`Some(6)` for
+    /// [`Affine2`]); `None` when it depends on the map (a flame transform's variations).
+    /// It lets the backward scan index gradients with a compile-time stride; a type that
+    /// sets it must return the same number from [`DiffMap2::n_params`] (the scan falls back
+    /// to per-map offsets when they disagree).
+    const PARAMS: Option<usize> = None;
+
     /// Number of parameters of this map.
     fn n_params(&self) -> usize;
 
@@ -197,6 +204,8 @@ pub fn vjp_check<M: DiffMap2>(map: &M, x: [f64; 2], lambda: [f64; 2], h: f64) ->
 }
 
 impl DiffMap2 for Affine2 {
+    const PARAMS: Option<usize> = Some(6);
+
     #[inline(always)]
     fn n_params(&self) -> usize {
         6
@@ -327,6 +336,8 @@ impl Map2 for Similitude2 {
 }
 
 impl DiffMap2 for Similitude2 {
+    const PARAMS: Option<usize> = Some(4);
+
     #[inline(always)]
     fn n_params(&self) -> usize {
         4

@@ -1,6 +1,8 @@
 //! The chaos game of the fused op, keeping every state for the reverse pass, and the
 //! backward scan through each trajectory's maps.
 
+use std::ops::Range;
+
 use rand::{Rng, RngCore};
 use rayon::prelude::*;
 
@@ -96,10 +98,29 @@ impl TrajectoryTape {
     /// Per step `k` (map `i = i_{k−1}`, state `x = s_{k−1}`): `λ += ∂L/∂s_k` if `s_k` is kept,
     /// then `∂L/∂θ_i += (∂f_i/∂θ)(x)ᵀλ` and `λ ← (∂f_i/∂x)(x)ᵀλ` ([`DiffMap2::vjp`]).
     pub fn backward<M: DiffMap2>(&self, maps: &[M], grad_points: &[[f64; 2]]) -> Vec<f64> {
-        let (l, m) = (self.length, self.warmup);
-        let kept = l - m;
         let off = param_offsets(maps);
         let total = off[maps.len()];
+        // Maps of one fixed size (affine: 6) find their slot by a multiplication with a
+        // compile-time constant, so the slice length is known and the vjp's bounds checks
+        // fold away; otherwise through the offsets table.
+        match M::PARAMS {
+            Some(p) if off.iter().enumerate().all(|(i, &o)| o == i * p) => {
+                self.scan(maps, grad_points, total, |i| i * p..(i + 1) * p)
+            }
+            _ => self.scan(maps, grad_points, total, |i| off[i]..off[i + 1]),
+        }
+    }
+
+    /// The backward scan with map `i`'s gradient in `acc[slot(i)]`.
+    fn scan<M: DiffMap2>(
+        &self,
+        maps: &[M],
+        grad_points: &[[f64; 2]],
+        total: usize,
+        slot: impl Fn(usize) -> Range<usize> + Sync,
+    ) -> Vec<f64> {
+        let (l, m) = (self.length, self.warmup);
+        let kept = l - m;
         let partials: Vec<Vec<f64>> = (0..self.trajectories.div_ceil(GROUP))
             .into_par_iter()
             .map(|g| {
@@ -116,7 +137,7 @@ impl TrajectoryTape {
                             lam[1] += g[1];
                         }
                         let i = ix[k - 1] as usize;
-                        lam = maps[i].vjp(st[k - 1], lam, &mut acc[off[i]..off[i + 1]]);
+                        lam = maps[i].vjp(st[k - 1], lam, &mut acc[slot(i)]);
                     }
                 }
                 acc
