@@ -170,7 +170,7 @@ pub struct ParamEvaluation {
     /// The weighted image terms as a scalar tensor (call `backward()` on it).
     pub image_total: Tensor,
     /// `∂R/∂θ` of the regulariser, map after map
-    /// ([`param_offsets`](crate::model::diff_map::param_offsets)).
+    /// ([`param_offsets`]).
     pub param_grad: Vec<f64>,
     /// Per-term values; `total` includes the regulariser.
     pub breakdown: LossBreakdown,

@@ -18,7 +18,13 @@
 //!
 //! Reverse: per-pixel gradients are pulled back to per-point gradients tile by tile, through
 //! the framing, then through each trajectory by a backward scan over its maps
-//! (`λ_k = A_{i_k}ᵀ λ_{k+1} + ∂L/∂x_k`, `∂L/∂A_i += λ_{k+1} x_kᵀ`, `∂L/∂b_i += λ_{k+1}`).
+//! (`λ_k = J_x(f_{i_k}, x_k)ᵀ λ_{k+1} + ∂L/∂x_k`, `∂L/∂θ_i += J_θ(f_i, x_k)ᵀ λ_{k+1}`; for an
+//! affine map `J_x = A_i`, `∂L/∂A_i += λ_{k+1} x_kᵀ`, `∂L/∂b_i += λ_{k+1}`).
+//!
+//! Everything is generic over the map type ([`DiffMap2`]: affine maps, similitudes, and
+//! any map that provides its two vector–Jacobian products) and monomorphised per type, so
+//! the affine path runs the same inlined loops as a hand-written affine splatter. Map
+//! gradients come back flat, map after map ([`param_offsets`]).
 //!
 //! The grid is processed in tiles of about 64×64 supersampled pixels (at least 16×16 output
 //! pixels): points are binned to the tiles
@@ -26,8 +32,9 @@
 //! thread in point order. Every floating-point sum has a fixed order, so forward and reverse
 //! are bit-identical for any thread count.
 //!
-//! [`SplatOp`] wraps the fused op as a candle `CustomOp1` (maps `(n, 6)` → image `(H, W)`)
-//! so image losses compose as candle tensors and a GPU kernel can plug into `cuda_fwd`.
+//! [`SplatOp`] wraps the fused op as a candle `CustomOp1` (affine maps `(n, 6)`, or the
+//! parameters of any [`DiffMap2`] maps, → image `(H, W)`) so image losses compose as candle
+//! tensors and a GPU kernel can plug into `cuda_fwd`.
 //!
 //! ## References
 //! - Djeacoumar et al., *Learning Image Fractals Using Chaotic Differentiable Point Splatting*.

@@ -92,7 +92,7 @@ impl TrajectoryTape {
     }
 
     /// Backward scan: `∂L/∂θ` of every map, in the flat layout of
-    /// [`param_offsets`](crate::model::diff_map::param_offsets), from `∂L/∂(kept points)`
+    /// [`param_offsets`], from `∂L/∂(kept points)`
     /// (same layout as [`Self::kept_points`]).
     ///
     /// Per step `k` (map `i = i_{k−1}`, state `x = s_{k−1}`): `λ += ∂L/∂s_k` if `s_k` is kept,
