@@ -42,7 +42,7 @@ pub use lpips::{
 };
 pub use moments::Moments;
 pub use msmse::{MsMse, MsMseReduction};
-pub use objective::{Evaluation, LossBreakdown, LossConfig, Objective};
+pub use objective::{Evaluation, LossBreakdown, LossConfig, Objective, ParamEvaluation};
 pub use regulariser::{ConditionTerm, Regulariser};
 pub use ssim::{DSsim, ssim, ssim_map};
 

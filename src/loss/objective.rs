@@ -31,6 +31,7 @@ use crate::loss::candle_ops::{Downsample2x, apply_loss, image_hw};
 use crate::loss::lpips::{FETCH_HINT, Lpips, LpipsFeatures, default_lpips_weights_path};
 use crate::loss::{DSsim, Moments, MsMse, MsMseReduction, Regulariser};
 use crate::model::affine::Affine2;
+use crate::model::diff_map::{AffinePart, param_offsets};
 
 /// Weights and options of the composite loss. Defaults are the paper's.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -158,6 +159,19 @@ pub struct Evaluation {
     pub image_total: Tensor,
     /// `∂R/∂maps` of the regulariser, to add to the image terms' map gradient.
     pub map_grad: Vec<Affine2>,
+    /// Per-term values; `total` includes the regulariser.
+    pub breakdown: LossBreakdown,
+}
+
+/// What [`Objective::evaluate_params`] returns: [`Evaluation`] for any map type, the
+/// regulariser's gradient in the maps' flat parameter layout.
+#[derive(Debug)]
+pub struct ParamEvaluation {
+    /// The weighted image terms as a scalar tensor (call `backward()` on it).
+    pub image_total: Tensor,
+    /// `∂R/∂θ` of the regulariser, map after map
+    /// ([`param_offsets`]).
+    pub param_grad: Vec<f64>,
     /// Per-term values; `total` includes the regulariser.
     pub breakdown: LossBreakdown,
 }
@@ -334,6 +348,36 @@ impl Objective {
     /// The map regulariser's value and its gradient with respect to the maps.
     pub fn regulariser(&self, maps: &[Affine2]) -> Result<(f64, Vec<Affine2>)> {
         self.config.regulariser.value_and_grad(maps)
+    }
+
+    /// The map regulariser on the affine parts of any maps: its value and its gradient with
+    /// respect to their parameters, map after map.
+    pub fn regulariser_params<M: AffinePart>(&self, maps: &[M]) -> Result<(f64, Vec<f64>)> {
+        let parts: Vec<Affine2> = maps.iter().map(AffinePart::affine_part).collect();
+        let (r, g) = self.regulariser(&parts)?;
+        let off = param_offsets(maps);
+        let mut grad = vec![0.0; off[maps.len()]];
+        for (i, (m, gi)) in maps.iter().zip(&g).enumerate() {
+            m.affine_part_backward(gi, &mut grad[off[i]..off[i + 1]]);
+        }
+        Ok((r, grad))
+    }
+
+    /// Image terms for `pred` plus the regulariser on `maps` of any type with an affine part.
+    pub fn evaluate_params<M: AffinePart>(
+        &self,
+        pred: &Tensor,
+        maps: &[M],
+    ) -> Result<ParamEvaluation> {
+        let (image_total, mut breakdown) = self.image_loss(pred)?;
+        let (r, param_grad) = self.regulariser_params(maps)?;
+        breakdown.regulariser = Some(r);
+        breakdown.total += r;
+        Ok(ParamEvaluation {
+            image_total,
+            param_grad,
+            breakdown,
+        })
     }
 
     /// Image terms for `pred` plus the regulariser on `maps`.

@@ -7,9 +7,11 @@ use crate::error::{Error, Result};
 
 /// A map of the plane that a chaos game can iterate.
 ///
-/// Affine maps implement it today; flame transforms (affine + non-linear variations)
-/// and control-point segment maps implement it later, so generators and renderers are
-/// written once against this trait.
+/// Generators and the evaluation renderer are written once against this trait. A map the
+/// differentiable splatter should train also implements
+/// [`DiffMap2`](crate::model::diff_map::DiffMap2) (its parameters and vector–Jacobian
+/// products); [`Affine2`] and [`Similitude2`](crate::model::diff_map::Similitude2) do, and
+/// flame transforms and control-point segment maps are meant to.
 pub trait Map2: Send + Sync {
     /// The image of `p` under the map.
     fn apply(&self, p: [f64; 2]) -> [f64; 2];

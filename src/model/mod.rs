@@ -4,6 +4,8 @@
 //! - [`affine`]: 2-D affine maps (the renderers' map) and dimension-generic ones; the
 //!   [`Map2`] trait generators iterate, which flame transforms and segment maps will
 //!   implement too.
+//! - [`diff_map`]: [`DiffMap2`], the differentiable map the splatter's reverse pass needs
+//!   (vector–Jacobian products at a point), for [`Affine2`] and [`Similitude2`].
 //! - [`param`]: raw vector θ ↔ maps, with the chain rule and projection.
 //! - [`similitude`]: `s·R·x + t` in any dimension (EM's family).
 //! - [`probs`]: uniform, ∝|det| with a floor, explicit.
@@ -13,6 +15,7 @@
 
 pub mod affine;
 pub mod code;
+pub mod diff_map;
 pub mod library;
 pub mod param;
 pub mod probs;
@@ -21,6 +24,7 @@ pub mod similitude;
 
 pub use affine::{Affine2, AffineN, Map2};
 pub use code::{Framing, IfsCode};
+pub use diff_map::{AffinePart, DiffMap2, Similitude2};
 pub use param::{Naive, ParamKind, Parameterisation, Svd};
 pub use probs::ProbabilityRule;
 pub use similitude::Similitude;

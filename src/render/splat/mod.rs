@@ -18,7 +18,13 @@
 //!
 //! Reverse: per-pixel gradients are pulled back to per-point gradients tile by tile, through
 //! the framing, then through each trajectory by a backward scan over its maps
-//! (`λ_k = A_{i_k}ᵀ λ_{k+1} + ∂L/∂x_k`, `∂L/∂A_i += λ_{k+1} x_kᵀ`, `∂L/∂b_i += λ_{k+1}`).
+//! (`λ_k = J_x(f_{i_k}, x_k)ᵀ λ_{k+1} + ∂L/∂x_k`, `∂L/∂θ_i += J_θ(f_i, x_k)ᵀ λ_{k+1}`; for an
+//! affine map `J_x = A_i`, `∂L/∂A_i += λ_{k+1} x_kᵀ`, `∂L/∂b_i += λ_{k+1}`).
+//!
+//! Everything is generic over the map type ([`DiffMap2`]: affine maps, similitudes, and
+//! any map that provides its two vector–Jacobian products) and monomorphised per type, so
+//! the affine path runs the same inlined loops as a hand-written affine splatter. Map
+//! gradients come back flat, map after map ([`param_offsets`]).
 //!
 //! The grid is processed in tiles of about 64×64 supersampled pixels (at least 16×16 output
 //! pixels): points are binned to the tiles
@@ -26,8 +32,9 @@
 //! thread in point order. Every floating-point sum has a fixed order, so forward and reverse
 //! are bit-identical for any thread count.
 //!
-//! [`SplatOp`] wraps the fused op as a candle `CustomOp1` (maps `(n, 6)` → image `(H, W)`)
-//! so image losses compose as candle tensors and a GPU kernel can plug into `cuda_fwd`.
+//! [`SplatOp`] wraps the fused op as a candle `CustomOp1` (affine maps `(n, 6)`, or the
+//! parameters of any [`DiffMap2`] maps, → image `(H, W)`) so image losses compose as candle
+//! tensors and a GPU kernel can plug into `cuda_fwd`.
 //!
 //! ## References
 //! - Djeacoumar et al., *Learning Image Fractals Using Chaotic Differentiable Point Splatting*.
@@ -39,14 +46,14 @@ pub mod trajectories;
 
 use serde::{Deserialize, Serialize};
 
-pub use candle_op::{SplatOp, maps_from_tensor, maps_to_tensor};
+pub use candle_op::{SplatOp, maps_from_tensor, maps_to_tensor, params_to_tensor};
 pub use frame::{FrameState, SplatFraming};
 pub use kernel::{Blend, SplatGrid, SplatReal, release_buffers};
 pub use trajectories::TrajectoryTape;
 
 use crate::chaos::ChaosGame;
 use crate::error::{Error, Result};
-use crate::model::affine::Affine2;
+use crate::model::diff_map::{DiffMap2, check_finite_params, flat_params, param_offsets};
 
 /// Everything the fused op needs besides the maps and the seed.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -154,9 +161,12 @@ pub struct SplatTape<T: SplatReal> {
 }
 
 /// Forward pass: the image (row-major `height × width`, values ≥ 0) and its tape.
+///
+/// Generic over the map type and monomorphised: the chaos game calls the map's `apply`
+/// inline.
 pub fn forward<T: SplatReal>(
     cfg: &SplatConfig,
-    maps: &[Affine2],
+    maps: &[impl DiffMap2],
     seed: u64,
 ) -> Result<(Vec<T>, SplatTape<T>)> {
     cfg.validate()?;
@@ -166,13 +176,7 @@ pub fn forward<T: SplatReal>(
     if maps.len() > u16::MAX as usize {
         return Err(Error::param("maps", "at most 65535 maps"));
     }
-    if let Some((i, _)) = maps.iter().enumerate().find(|(_, m)| !m.is_finite()) {
-        return Err(Error::NonFinite {
-            what: "maps".into(),
-            location: format!("map {i}"),
-            value: f64::NAN,
-        });
-    }
+    check_finite_params(&flat_params(maps), &param_offsets(maps))?;
     let tape = trajectories::run(&cfg.game, maps, seed)?;
     let kept = tape.kept_points();
     let frame = frame::fit(
@@ -194,20 +198,30 @@ pub fn forward<T: SplatReal>(
     ))
 }
 
-/// Reverse pass: `∂L/∂maps` (each [`Affine2`] holding `∂L/∂M` and `∂L/∂b`) from
-/// `∂L/∂image` (row-major, same shape as the forward image).
+/// Reverse pass: `∂L/∂θ` of every map, map after map in the layout of
+/// [`param_offsets`] (for [`Affine2`] maps: `[a, b, c, d, e, f]` per map, i.e. `∂L/∂M`
+/// row-major then `∂L/∂b`), from `∂L/∂image` (row-major, same shape as the forward image).
+///
+/// [`Affine2`]: crate::model::Affine2
 pub fn backward<T: SplatReal>(
     cfg: &SplatConfig,
-    maps: &[Affine2],
+    maps: &[impl DiffMap2],
     tape: &SplatTape<T>,
     grad_image: &[T],
-) -> Result<Vec<Affine2>> {
+) -> Result<Vec<f64>> {
     if grad_image.len() != cfg.width * cfg.height {
         return Err(Error::Shape(format!(
             "image gradient has {} values for a {}×{} image",
             grad_image.len(),
             cfg.width,
             cfg.height
+        )));
+    }
+    if maps.len() != tape.trajectories.maps {
+        return Err(Error::Shape(format!(
+            "the tape was recorded with {} maps but {} were given",
+            tape.trajectories.maps,
+            maps.len()
         )));
     }
     let grid = cfg.grid();

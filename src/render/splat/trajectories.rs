@@ -1,12 +1,15 @@
 //! The chaos game of the fused op, keeping every state for the reverse pass, and the
 //! backward scan through each trajectory's maps.
 
+use std::ops::Range;
+
 use rand::{Rng, RngCore};
 use rayon::prelude::*;
 
 use crate::chaos::{ChaosGame, MapSampler, is_bounded, trajectory_rng};
 use crate::error::{Error, Result};
-use crate::model::affine::{Affine2, Map2};
+use crate::model::affine::Map2;
+use crate::model::diff_map::{DiffMap2, param_offsets};
 
 /// Trajectories reduced together in the reverse pass; fixed so sums have a fixed order.
 const GROUP: usize = 16;
@@ -25,10 +28,12 @@ pub struct TrajectoryTape {
     pub length: usize,
     /// Dropped steps m.
     pub warmup: usize,
+    /// Number of maps the game drew from.
+    pub maps: usize,
 }
 
 /// Runs the game with uniform map probabilities, seeded by `seed`.
-pub fn run(game: &ChaosGame, maps: &[Affine2], seed: u64) -> Result<TrajectoryTape> {
+pub fn run<M: Map2>(game: &ChaosGame, maps: &[M], seed: u64) -> Result<TrajectoryTape> {
     let (b, l) = (game.trajectories, game.length);
     let sampler = MapSampler::uniform(maps.len());
     let mut states = vec![[0.0; 2]; b * (l + 1)];
@@ -67,6 +72,7 @@ pub fn run(game: &ChaosGame, maps: &[Affine2], seed: u64) -> Result<TrajectoryTa
         trajectories: b,
         length: l,
         warmup: game.warmup,
+        maps: maps.len(),
     })
 }
 
@@ -85,16 +91,40 @@ impl TrajectoryTape {
             .collect()
     }
 
-    /// Backward scan: `∂L/∂maps` from `∂L/∂(kept points)` (same layout as [`Self::kept_points`]).
-    pub fn backward(&self, maps: &[Affine2], grad_points: &[[f64; 2]]) -> Vec<Affine2> {
+    /// Backward scan: `∂L/∂θ` of every map, in the flat layout of
+    /// [`param_offsets`], from `∂L/∂(kept points)`
+    /// (same layout as [`Self::kept_points`]).
+    ///
+    /// Per step `k` (map `i = i_{k−1}`, state `x = s_{k−1}`): `λ += ∂L/∂s_k` if `s_k` is kept,
+    /// then `∂L/∂θ_i += (∂f_i/∂θ)(x)ᵀλ` and `λ ← (∂f_i/∂x)(x)ᵀλ` ([`DiffMap2::vjp`]).
+    pub fn backward<M: DiffMap2>(&self, maps: &[M], grad_points: &[[f64; 2]]) -> Vec<f64> {
+        let off = param_offsets(maps);
+        let total = off[maps.len()];
+        // Maps of one fixed size (affine: 6) find their slot by a multiplication with a
+        // compile-time constant, so the slice length is known and the vjp's bounds checks
+        // fold away; otherwise through the offsets table.
+        match M::PARAMS {
+            Some(p) if off.iter().enumerate().all(|(i, &o)| o == i * p) => {
+                self.scan(maps, grad_points, total, |i| i * p..(i + 1) * p)
+            }
+            _ => self.scan(maps, grad_points, total, |i| off[i]..off[i + 1]),
+        }
+    }
+
+    /// The backward scan with map `i`'s gradient in `acc[slot(i)]`.
+    fn scan<M: DiffMap2>(
+        &self,
+        maps: &[M],
+        grad_points: &[[f64; 2]],
+        total: usize,
+        slot: impl Fn(usize) -> Range<usize> + Sync,
+    ) -> Vec<f64> {
         let (l, m) = (self.length, self.warmup);
         let kept = l - m;
-        let n = maps.len();
-        let zero = || vec![[0.0f64; 6]; n];
-        let partials: Vec<Vec<[f64; 6]>> = (0..self.trajectories.div_ceil(GROUP))
+        let partials: Vec<Vec<f64>> = (0..self.trajectories.div_ceil(GROUP))
             .into_par_iter()
             .map(|g| {
-                let mut acc = zero();
+                let mut acc = vec![0.0f64; total];
                 for j in g * GROUP..((g + 1) * GROUP).min(self.trajectories) {
                     let st = &self.states[j * (l + 1)..(j + 1) * (l + 1)];
                     let ix = &self.indices[j * l..(j + 1) * l];
@@ -107,35 +137,18 @@ impl TrajectoryTape {
                             lam[1] += g[1];
                         }
                         let i = ix[k - 1] as usize;
-                        let x = st[k - 1];
-                        let a = &mut acc[i];
-                        a[0] += lam[0] * x[0];
-                        a[1] += lam[0] * x[1];
-                        a[2] += lam[1] * x[0];
-                        a[3] += lam[1] * x[1];
-                        a[4] += lam[0];
-                        a[5] += lam[1];
-                        let mm = &maps[i].m;
-                        lam = [
-                            mm[(0, 0)] * lam[0] + mm[(1, 0)] * lam[1],
-                            mm[(0, 1)] * lam[0] + mm[(1, 1)] * lam[1],
-                        ];
+                        lam = maps[i].vjp(st[k - 1], lam, &mut acc[slot(i)]);
                     }
                 }
                 acc
             })
             .collect();
-        let mut total = zero();
+        let mut total = vec![0.0f64; total];
         for p in partials {
             for (t, v) in total.iter_mut().zip(p) {
-                for c in 0..6 {
-                    t[c] += v[c];
-                }
+                *t += v;
             }
         }
         total
-            .iter()
-            .map(|c| Affine2::from_coefficients(c))
-            .collect()
     }
 }
