@@ -4,7 +4,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use ifslab_strategies::image::InversionConfig;
+use ifslab_strategies::problems::image::InversionConfig;
 
 fn ifslab(args: &[&str]) -> (bool, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_ifslab"))

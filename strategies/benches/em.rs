@@ -14,7 +14,9 @@ static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use ifslab::chaos::trajectory_rng;
 use ifslab::model::Similitude;
-use ifslab_strategies::em::{ComponentUpdate, EmModel, MStepConfig, PointSet, em_step, init};
+use ifslab_strategies::problems::em::{
+    ComponentUpdate, EmModel, MStepConfig, PointSet, em_step, init,
+};
 
 /// A batch of 500 points from a random 3-map IFS in R^h, and a random starting model.
 fn setup(h: usize, depth: usize) -> (EmModel, PointSet) {

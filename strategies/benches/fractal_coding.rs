@@ -14,7 +14,7 @@ static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 use std::path::Path;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use ifslab_strategies::fractal_coding::{
+use ifslab_strategies::problems::fractal_coding::{
     EncoderConfig, Filter, Texture, bilinear_into, decode_into, encode, output_size, upsample,
 };
 

@@ -1,25 +1,22 @@
 //! # ifslab-strategies
 //!
-//! Inversion strategies: each family in its own folder, each variant in its own file.
+//! How IFS codes are found: generic optimisers apart from the problems they solve.
 //!
-//! - [`driver`]: what every iterative strategy shares (problem interface, checkpoints, logs);
-//! - [`registry`]: every strategy a run can name (one line each);
-//! - [`adam`], [`hybrid`], [`annealing`], [`noisy`], [`gd`]: gradient and annealing strategies;
-//! - [`image`]: image → IFS code with the differentiable splatter and any of those strategies;
-//! - [`em`]: expectation–maximisation for similitude IFSs fitted to point clouds (any dimension).
-//! - [`fractal_coding`]: fractal-coding texture upsampling (partitioned IFS per texel).
+//! - [`optim`]: the generic optimisers — [`optim::adam`], [`optim::hybrid`] (Adam with
+//!   simulated-annealing phases), [`optim::annealing`], [`optim::noisy`], [`optim::gd`];
+//! - [`registry`]: every optimiser a run can name (one line each);
+//! - [`driver`]: what every iterative optimiser shares (the `Differentiable` problem
+//!   interface, hyper-parameter `Params`, checkpoints, logs);
+//! - [`problems`]: [`problems::image`] (image → IFS code with the differentiable splatter and
+//!   any registered optimiser), [`problems::em`] (EM for similitude IFSs fitted to point
+//!   clouds of any dimension), [`problems::fractal_coding`] (fractal-coding texture
+//!   upsampling).
 #![warn(missing_docs)]
 
-pub mod adam;
-pub mod annealing;
 pub mod driver;
-pub mod em;
 pub mod error;
-pub mod fractal_coding;
-pub mod gd;
-pub mod hybrid;
-pub mod image;
-pub mod noisy;
+pub mod optim;
+pub mod problems;
 pub mod registry;
 
 pub use error::{Error, Result};

@@ -18,13 +18,13 @@ use serde::de::{DeserializeOwned, Deserializer};
 use serde::ser::Serializer;
 use serde::{Deserialize, Serialize};
 
-use crate::adam::{Adam, AdamConfig};
-use crate::annealing::{Anneal, AnnealingConfig, SimulatedAnnealing};
 use crate::driver::{Differentiable, GradState, Params, RunSpec};
 use crate::error::{Error, Result};
-use crate::gd::{GdConfig, GradientDescent};
-use crate::hybrid::{ColdHybridConfig, Hybrid, HybridConfig};
-use crate::noisy::{NoisyAdam, NoisyConfig};
+use crate::optim::adam::{Adam, AdamConfig};
+use crate::optim::annealing::{Anneal, AnnealingConfig, SimulatedAnnealing};
+use crate::optim::gd::{GdConfig, GradientDescent};
+use crate::optim::hybrid::{ColdHybridConfig, Hybrid, HybridConfig};
+use crate::optim::noisy::{NoisyAdam, NoisyConfig};
 
 /// A problem every registered strategy can run on: a loss with its gradient, and a cheap
 /// cost on a chosen random stream.

@@ -9,8 +9,8 @@ use rand_xoshiro::Xoshiro256PlusPlus;
 use ifslab::chaos::{ChaosGame, generate_nd, trajectory_rng};
 use ifslab::model::similitude::random_rotation;
 use ifslab::model::{IfsCode, Similitude, library};
-use ifslab_strategies::em::model::inverse;
-use ifslab_strategies::em::*;
+use ifslab_strategies::problems::em::model::inverse;
+use ifslab_strategies::problems::em::*;
 
 /// `n` points of a built-in code's attractor, from many short chaos-game trajectories.
 fn cloud(name: &str, n: usize, seed: u64) -> PointSet {

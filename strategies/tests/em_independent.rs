@@ -11,7 +11,7 @@ use std::path::PathBuf;
 use nalgebra::{DMatrix, DVector};
 
 use ifslab::model::Similitude;
-use ifslab_strategies::em::{EmConfig, Event, PointSet, fit};
+use ifslab_strategies::problems::em::{EmConfig, Event, PointSet, fit};
 
 fn load(name: &str) -> PointSet {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))

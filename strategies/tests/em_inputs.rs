@@ -3,7 +3,7 @@
 use std::path::Path;
 
 use ifslab_strategies::Error;
-use ifslab_strategies::em::{EmConfig, PointSet, fit};
+use ifslab_strategies::problems::em::{EmConfig, PointSet, fit};
 
 fn write(dir: &Path, name: &str, bytes: &[u8]) -> std::path::PathBuf {
     let p = dir.join(name);

@@ -7,8 +7,8 @@ use std::path::PathBuf;
 use nalgebra::{DMatrix, DVector};
 
 use ifslab::model::Similitude;
-use ifslab_strategies::em::reorient::{reorient, rotation_set};
-use ifslab_strategies::em::{EmModel, PointSet};
+use ifslab_strategies::problems::em::reorient::{reorient, rotation_set};
+use ifslab_strategies::problems::em::{EmModel, PointSet};
 
 /// The independent triangle sample (see `em_independent.rs`).
 fn triangle_points() -> PointSet {

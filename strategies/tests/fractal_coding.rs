@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use ifslab_strategies::fractal_coding::{
+use ifslab_strategies::problems::fractal_coding::{
     CoordStorage, DistanceCentre, EncoderConfig, FractalCode, HALF_MAX, HALF_MIN, Matching, Preset,
     RefineConfig, SearchGrid, Texture, decode, decode_into, decode_serial, decode_texel, encode,
     encode_refined, laplacian_variance, levels_for_factor, load_dir, pack, psnr, refine, save_dir,
@@ -388,10 +388,10 @@ fn real_textures_reconstruct_well_at_1x() {
     let code = encode(&s, &EncoderConfig::default()).unwrap().code;
     let ours = psnr(&decode(&code, 1).unwrap(), &s).unwrap();
     let bil = psnr(
-        &ifslab_strategies::fractal_coding::upsample(
+        &ifslab_strategies::problems::fractal_coding::upsample(
             code.reduced(),
             2,
-            ifslab_strategies::fractal_coding::Filter::Bilinear,
+            ifslab_strategies::problems::fractal_coding::Filter::Bilinear,
         )
         .unwrap(),
         &s,

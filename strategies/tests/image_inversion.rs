@@ -5,10 +5,10 @@ use ifslab::metrics::paper_metrics;
 use ifslab::model::ParamKind;
 use ifslab::model::library;
 use ifslab::render::{RenderConfig, render};
-use ifslab_strategies::adam::AdamConfig;
-use ifslab_strategies::image::config::GeneratorConfig;
-use ifslab_strategies::image::config::{ModelConfig, RendererConfig, TargetConfig};
-use ifslab_strategies::image::{InversionConfig, StrategyConfig, run_inversion};
+use ifslab_strategies::optim::adam::AdamConfig;
+use ifslab_strategies::problems::image::config::GeneratorConfig;
+use ifslab_strategies::problems::image::config::{ModelConfig, RendererConfig, TargetConfig};
+use ifslab_strategies::problems::image::{InversionConfig, StrategyConfig, run_inversion};
 
 fn target(code: &str, size: usize) -> Vec<f32> {
     let c = library::builtin(code).unwrap();
@@ -92,7 +92,7 @@ fn adam_on_the_naive_parameterisation_recovers_a_perturbed_code() {
         ..ModelConfig::default()
     };
     let dir = tempfile::tempdir().unwrap();
-    let start = ifslab_strategies::image::initial_theta(
+    let start = ifslab_strategies::problems::image::initial_theta(
         &cfg,
         cfg.model.parameterisation.build().as_ref(),
         &t,
@@ -112,8 +112,8 @@ fn adam_on_the_naive_parameterisation_recovers_a_perturbed_code() {
 /// IoU of the EM start and of the hybrid run from it (cold annealing phases every 50
 /// iterations, coarse-to-fine σ 1 → 0.4), for `maps` maps against `code`'s 64² render.
 fn em_then_hybrid(code: &str, maps: usize, seed: u64, iterations: u64) -> (f64, f64) {
-    use ifslab_strategies::hybrid::HybridConfig;
-    use ifslab_strategies::image::InitKind;
+    use ifslab_strategies::optim::hybrid::HybridConfig;
+    use ifslab_strategies::problems::image::InitKind;
     let size = 64;
     let t = target(code, size);
     let mut cfg = base_config(
@@ -130,7 +130,8 @@ fn em_then_hybrid(code: &str, maps: usize, seed: u64, iterations: u64) -> (f64, 
     cfg.model.init = InitKind::Em;
     cfg.renderer.sigma_final = Some(0.4);
     let param = cfg.model.parameterisation.build();
-    let start = ifslab_strategies::image::initial_theta(&cfg, param.as_ref(), &t).unwrap();
+    let start =
+        ifslab_strategies::problems::image::initial_theta(&cfg, param.as_ref(), &t).unwrap();
     let em_only = iou_of(&param.decode(&start).unwrap(), &t, size);
     let dir = tempfile::tempdir().unwrap();
     let out = run_inversion(&cfg, t.clone(), dir.path(), false, vec![]).unwrap();
@@ -173,7 +174,7 @@ fn resume_is_bit_identical() {
     use argmin::core::observers::Observe;
     use argmin::core::{Error as ArgminError, KV, State};
     use ifslab_strategies::driver::GradState;
-    use ifslab_strategies::hybrid::HybridConfig;
+    use ifslab_strategies::optim::hybrid::HybridConfig;
 
     /// Fails the run at a given iteration, like a crash.
     struct Crash(u64);
@@ -256,8 +257,8 @@ fn resume_is_bit_identical() {
 /// present) and the annealing draws.
 #[test]
 fn same_seed_same_code_with_any_thread_count() {
-    use ifslab_strategies::annealing::AnnealingConfig;
-    use ifslab_strategies::hybrid::HybridConfig;
+    use ifslab_strategies::optim::annealing::AnnealingConfig;
+    use ifslab_strategies::optim::hybrid::HybridConfig;
 
     let size = 48;
     let t = target("sierpinski", size);
@@ -305,9 +306,9 @@ fn same_seed_same_code_with_any_thread_count() {
 /// from `sigma` (t = 0) to `sigma_final` (t = T).
 #[test]
 fn sigma_schedule_renders_with_the_scheduled_sigma() {
-    use ifslab_strategies::annealing::Anneal;
     use ifslab_strategies::driver::Differentiable;
-    use ifslab_strategies::image::ImageProblem;
+    use ifslab_strategies::optim::annealing::Anneal;
+    use ifslab_strategies::problems::image::ImageProblem;
 
     let size = 32;
     let t = target("sierpinski", size);
@@ -354,7 +355,7 @@ fn sigma_schedule_renders_with_the_scheduled_sigma() {
 #[test]
 fn end_to_end_gradient_matches_finite_differences_in_f32() {
     use ifslab_strategies::driver::Differentiable;
-    use ifslab_strategies::image::ImageProblem;
+    use ifslab_strategies::problems::image::ImageProblem;
 
     let size = 32;
     let t = target("sierpinski", size);

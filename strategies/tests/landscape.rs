@@ -5,7 +5,7 @@ use ifslab::chaos::ChaosGame;
 use ifslab::loss::LossConfig;
 use ifslab::model::{ParamKind, library};
 use ifslab::render::splat::{self, SplatConfig};
-use ifslab_strategies::image::{Directions, ImageProblem, LandscapeConfig, landscape};
+use ifslab_strategies::problems::image::{Directions, ImageProblem, LandscapeConfig, landscape};
 
 fn problem(size: usize) -> (ImageProblem, Vec<f64>) {
     let maps = library::builtin("sierpinski").unwrap().affine2().unwrap();

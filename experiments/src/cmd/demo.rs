@@ -5,11 +5,11 @@
 
 use std::path::PathBuf;
 
-use ifslab_strategies::hybrid::{ColdHybridConfig, HybridConfig};
-use ifslab_strategies::image::config::{
+use ifslab_strategies::optim::hybrid::{ColdHybridConfig, HybridConfig};
+use ifslab_strategies::problems::image::config::{
     GeneratorConfig, ModelConfig, RendererConfig, TargetConfig,
 };
-use ifslab_strategies::image::{InitKind, InversionConfig, StrategyConfig};
+use ifslab_strategies::problems::image::{InitKind, InversionConfig, StrategyConfig};
 
 use ifslab_experiments::runs::inversion::run_and_report;
 

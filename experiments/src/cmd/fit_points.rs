@@ -9,7 +9,7 @@
 //! the agreement of the two attractors' coverage and the largest difference of their sorted
 //! scales, since a run can meet the convergence criterion with a wrong code.
 //!
-//! The defaults are ifslab's (see `ifslab_strategies::em::EmConfig`); `--paper` runs the
+//! The defaults are ifslab's (see `ifslab_strategies::problems::em::EmConfig`); `--paper` runs the
 //! paper's algorithm instead.
 
 use std::path::{Path, PathBuf};
@@ -21,7 +21,7 @@ use ifslab::chaos::{ChaosGame, generate_nd, mix_seed};
 use ifslab::model::IfsCode;
 use ifslab::render::image_io::BitDepth;
 use ifslab::render::{RenderConfig, RenderMode, View, render};
-use ifslab_strategies::em::{
+use ifslab_strategies::problems::em::{
     ComponentUpdate, Covariance, EmConfig, EmFit, EmModel, Event, Gmm, GmmConfig, MStepConfig,
     PointSet, PreselectBy, ReorientConfig, fit, fit_all,
 };

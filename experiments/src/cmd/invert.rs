@@ -5,13 +5,13 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use ifslab::model::ParamKind;
-use ifslab_strategies::adam::AdamConfig;
-use ifslab_strategies::hybrid::{ColdHybridConfig, HybridConfig};
-use ifslab_strategies::image::config::{
+use ifslab_strategies::optim::adam::AdamConfig;
+use ifslab_strategies::optim::hybrid::{ColdHybridConfig, HybridConfig};
+use ifslab_strategies::optim::noisy::NoisyConfig;
+use ifslab_strategies::problems::image::config::{
     GeneratorConfig, ModelConfig, RendererConfig, TargetConfig,
 };
-use ifslab_strategies::image::{InitKind, InversionConfig, Polarity, StrategyConfig};
-use ifslab_strategies::noisy::NoisyConfig;
+use ifslab_strategies::problems::image::{InitKind, InversionConfig, Polarity, StrategyConfig};
 
 use ifslab_experiments::runs::inversion::{CONFIG_FILE, run_and_report};
 

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, bail};
 use ifslab::model::IfsCode;
-use ifslab_strategies::image::{
+use ifslab_strategies::problems::image::{
     Directions, ImageProblem, InversionConfig, LandscapeConfig, landscape,
 };
 

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use ifslab_strategies::image::InversionConfig;
+use ifslab_strategies::problems::image::InversionConfig;
 
 use ifslab_experiments::runs::inversion::{output_dir, run_and_report};
 

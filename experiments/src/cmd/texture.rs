@@ -18,7 +18,7 @@ use std::time::Instant;
 use std::str::FromStr;
 
 use anyhow::{Context, bail};
-use ifslab_strategies::fractal_coding::{
+use ifslab_strategies::problems::fractal_coding::{
     CoordStorage, DistanceCentre, EncoderConfig, Filter, FractalCode, Matching, Preset, Reduction,
     RefineConfig, SearchGrid, Texture, decode, encode, levels_for_factor, load_dir, psnr, refine,
     save_dir, upsample,

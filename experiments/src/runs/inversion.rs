@@ -11,7 +11,7 @@ use ifslab::metrics::{EVAL_BORDER_FRACTION, ImageMetrics, border_crop_rect, pape
 use ifslab::model::{Affine2, Framing, IfsCode};
 use ifslab::render::image_io::{BitDepth, save_grey_png};
 use ifslab::render::{RenderConfig, View, Zoom, render};
-use ifslab_strategies::image::{
+use ifslab_strategies::problems::image::{
     FRAMED_TARGET_FILE, InversionConfig, InversionOutcome, ensure_new_run_dir, load_framed_target,
     load_target, run_inversion, save_framed_target,
 };

@@ -4,7 +4,7 @@
 //!
 //! A strategy is an argmin [`Solver`](argmin::core::Solver) over [`GradState`] (θ as a flat
 //! `Vec<f64>`); it talks to its problem through [`Differentiable`] (loss and gradient at
-//! an iteration) and, for annealing-type steps, [`crate::annealing::Anneal`].
+//! an iteration) and, for annealing-type steps, [`crate::optim::annealing::Anneal`].
 //! Problems are stochastic: iteration `t` draws its own chaos-game trajectories from a seed
 //! derived from `t`, so a resumed run sees exactly the randomness of an uninterrupted one.
 

@@ -20,7 +20,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
-use ifslab_strategies::fractal_coding::{
+use ifslab_strategies::problems::fractal_coding::{
     CoordStorage, EncodeStats, EncoderConfig, Filter, FractalCode, MAX_TOTAL_CANDIDATES, Matching,
     Preset, Reduction, RefineConfig, SearchGrid, Texture, bilinear_into, decode, decode_into,
     encode, laplacian_variance, load_dir, output_size, psnr, refine, save_dir, upsample,

@@ -1,0 +1,521 @@
+//! The configuration of an image inversion: target, model, generator, renderer, loss,
+//! strategy, seed. Read from TOML (`ifslab run CONFIG.toml`) or built from `ifslab invert`'s
+//! flags, validated before anything runs, and written beside the results.
+
+use std::path::{Path, PathBuf};
+
+use ifslab::chaos::ChaosGame;
+use ifslab::loss::LossConfig;
+use ifslab::model::ParamKind;
+use ifslab::render::splat::{Blend, SplatConfig, SplatFraming};
+use serde::{Deserialize, Serialize};
+
+use crate::driver::Params;
+use crate::error::{Error, Result};
+use crate::optim::hybrid::HybridConfig;
+use crate::problems::image::target::Polarity;
+use crate::registry;
+
+/// Where the target comes from.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TargetConfig {
+    /// An image file (PNG, JPEG, …); relative paths are relative to the config file.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub image: Option<PathBuf>,
+    /// Or a code (file or built-in name) rendered as the target.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub code: Option<String>,
+    /// Side of the square target and render, in pixels.
+    #[serde(default = "default_size")]
+    pub size: usize,
+    /// Which way round the image's shape is drawn.
+    #[serde(default)]
+    pub polarity: Polarity,
+}
+
+fn default_size() -> usize {
+    128
+}
+
+/// The model: how many maps, how θ is parameterised, how it starts.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ModelConfig {
+    /// Number of maps.
+    pub maps: usize,
+    /// Parameterisation of θ.
+    pub parameterisation: ParamKind,
+    /// How the initial code is chosen (random or em) when `init_code` is not given.
+    pub init: InitKind,
+    /// Seed of the initial code (Anderson–Farrell sampler, EM); default: the run's seed.
+    pub init_seed: Option<u64>,
+    /// Start from this code instead (a code file or built-in name; it must have `maps` maps).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub init_code: Option<String>,
+    /// Standard deviation of Gaussian noise added to the initial θ.
+    pub init_noise: f64,
+}
+
+impl Default for ModelConfig {
+    fn default() -> Self {
+        ModelConfig {
+            maps: 3,
+            parameterisation: ParamKind::Svd,
+            init: InitKind::Random,
+            init_seed: None,
+            init_code: None,
+            init_noise: 0.0,
+        }
+    }
+}
+
+/// The chaos-game layout of every iteration (a fresh seed per iteration).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GeneratorConfig {
+    /// Parallel trajectories.
+    pub trajectories: usize,
+    /// Steps per trajectory, warm-up included.
+    pub length: usize,
+    /// Steps dropped at the start of each trajectory.
+    pub warmup: usize,
+    /// Start points are uniform in `[−h, h]²`.
+    pub start_half_width: f64,
+}
+
+impl Default for GeneratorConfig {
+    fn default() -> Self {
+        let g = ChaosGame::default();
+        GeneratorConfig {
+            trajectories: g.trajectories,
+            length: g.length,
+            warmup: g.warmup,
+            start_half_width: g.start_half_width,
+        }
+    }
+}
+
+/// The differentiable renderer (its size is the target's).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RendererConfig {
+    /// Supersampling per side.
+    pub supersample: usize,
+    /// Gaussian σ in supersampled pixels.
+    pub sigma: f64,
+    /// Footprint radius in σ.
+    pub radius: f64,
+    /// Blend mode.
+    pub blend: Blend,
+    /// Largest α of one splat.
+    pub alpha_max: f64,
+    /// σ at the end of the run (coarse-to-fine, this project's addition): σ moves
+    /// geometrically from `sigma` at t = 0 to `sigma_final` at t = T, for the gradient steps
+    /// and the annealing phases alike. A wide splat gives a smooth loss early; a thin one
+    /// removes the blur's bias at the end (a splat wider than the target's lines makes the
+    /// loss prefer slightly shrunken maps). Unset: σ stays `sigma`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sigma_final: Option<f64>,
+}
+
+impl Default for RendererConfig {
+    /// 4× supersampling with σ = 1 supersampled pixel: splats about as thin as the binary
+    /// coverage of the evaluation renderer, so a code's render matches its ground truth (the
+    /// paper's 5× / σ = 2.5 at 1024² is a config away).
+    fn default() -> Self {
+        RendererConfig {
+            supersample: 4,
+            sigma: 1.0,
+            radius: 3.0,
+            blend: Blend::Coverage,
+            alpha_max: 0.99,
+            sigma_final: None,
+        }
+    }
+}
+
+impl RendererConfig {
+    /// σ at progress `frac = t/T` ∈ [0, 1] (clamped): `sigma·(sigma_final/sigma)^frac`.
+    pub fn sigma_at(&self, frac: f64) -> f64 {
+        match self.sigma_final {
+            Some(end) => self.sigma * (end / self.sigma).powf(frac.clamp(0.0, 1.0)),
+            None => self.sigma,
+        }
+    }
+}
+
+/// How the initial code is chosen when no `init_code` is given.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum InitKind {
+    /// An Anderson–Farrell random code (the paper's start).
+    Random,
+    /// EM on points sampled from the target image (the reliable start).
+    #[default]
+    Em,
+}
+
+/// The strategy and its hyper-parameters: any strategy of [`crate::registry`], by its
+/// `kind`, with its parameters completed with defaults and validated when read (so a written
+/// config shows every value the run used).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "RawStrategy", into = "RawStrategy")]
+pub struct StrategyConfig {
+    kind: String,
+    params: toml::Table,
+}
+
+/// How `[strategy]` is written: `kind` and the strategy's own keys side by side.
+#[derive(Clone, Serialize, Deserialize)]
+struct RawStrategy {
+    kind: String,
+    #[serde(flatten)]
+    params: toml::Table,
+}
+
+impl TryFrom<RawStrategy> for StrategyConfig {
+    type Error = Error;
+    fn try_from(r: RawStrategy) -> Result<Self> {
+        let params = registry::resolve(&r.kind, &r.params)?;
+        Ok(StrategyConfig {
+            kind: r.kind,
+            params,
+        })
+    }
+}
+
+impl From<StrategyConfig> for RawStrategy {
+    fn from(s: StrategyConfig) -> Self {
+        RawStrategy {
+            kind: s.kind,
+            params: s.params,
+        }
+    }
+}
+
+impl<C: Params> From<C> for StrategyConfig {
+    fn from(c: C) -> Self {
+        StrategyConfig::new(&c)
+    }
+}
+
+impl Default for StrategyConfig {
+    fn default() -> Self {
+        StrategyConfig::new(&HybridConfig::default())
+    }
+}
+
+impl StrategyConfig {
+    /// The strategy whose hyper-parameters are `c`.
+    pub fn new<C: Params>(c: &C) -> Self {
+        let params = match toml::Value::try_from(c) {
+            Ok(toml::Value::Table(t)) => t,
+            _ => unreachable!("strategy parameters serialise to a TOML table"),
+        };
+        StrategyConfig {
+            kind: C::KIND.to_owned(),
+            params,
+        }
+    }
+
+    /// The strategy's name (`hybrid`, `adam`, … : [`registry::kinds`]).
+    pub fn name(&self) -> &str {
+        &self.kind
+    }
+
+    /// Its hyper-parameters, every field present.
+    pub fn params(&self) -> &toml::Table {
+        &self.params
+    }
+
+    /// Its hyper-parameters as `C`, if it is `C`'s strategy.
+    pub fn typed<C: Params>(&self) -> Option<C> {
+        if self.kind != C::KIND {
+            return None;
+        }
+        toml::Value::Table(self.params.clone()).try_into().ok()
+    }
+
+    /// Changes the hyper-parameters of `C`'s strategy; false (nothing changed) for another.
+    pub fn update<C: Params>(&mut self, f: impl FnOnce(&mut C)) -> bool {
+        match self.typed::<C>() {
+            Some(mut c) => {
+                f(&mut c);
+                *self = StrategyConfig::new(&c);
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// The default configuration of the strategy called `name`.
+    pub fn by_name(name: &str) -> Result<Self> {
+        Ok(StrategyConfig {
+            kind: name.to_owned(),
+            params: registry::defaults(name)?,
+        })
+    }
+
+    /// Checks the strategy exists and its values are valid.
+    pub fn validate(&self) -> Result<()> {
+        registry::resolve(&self.kind, &self.params).map(|_| ())
+    }
+}
+
+/// A whole image inversion.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InversionConfig {
+    /// Seed of everything random in the run.
+    #[serde(default)]
+    pub seed: u64,
+    /// Optimisation iterations T.
+    pub iterations: u64,
+    /// Write a checkpoint every this many iterations (0: never).
+    #[serde(default = "default_checkpoint_every")]
+    pub checkpoint_every: u64,
+    /// Output folder (the command line's `-o` wins).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub output: Option<PathBuf>,
+    /// The target.
+    pub target: TargetConfig,
+    /// The model.
+    #[serde(default)]
+    pub model: ModelConfig,
+    /// The chaos game.
+    #[serde(default)]
+    pub generator: GeneratorConfig,
+    /// The differentiable renderer.
+    #[serde(default)]
+    pub renderer: RendererConfig,
+    /// Loss weights.
+    #[serde(default)]
+    pub loss: LossConfig,
+    /// The strategy.
+    #[serde(default)]
+    pub strategy: StrategyConfig,
+}
+
+fn default_checkpoint_every() -> u64 {
+    100
+}
+
+/// Prefixes a validation error with the config section it came from.
+fn in_section<T>(section: &str, r: Result<T>) -> Result<T> {
+    r.map_err(|e| match e {
+        Error::InvalidParameter { name, message } => {
+            Error::InvalidInput(format!("config field `{section}.{name}`: {message}"))
+        }
+        Error::Core(ifslab::Error::InvalidParameter { name, message }) => {
+            Error::InvalidInput(format!("config field `{section}.{name}`: {message}"))
+        }
+        other => Error::InvalidInput(format!("config section [{section}]: {other}")),
+    })
+}
+
+impl InversionConfig {
+    /// Parses TOML; an unknown or mistyped field is an error that names it.
+    pub fn from_toml(text: &str, origin: &Path) -> Result<Self> {
+        let cfg: InversionConfig = toml::from_str(text).map_err(|e| Error::file(origin, e))?;
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    /// TOML text of the resolved configuration (every default written out).
+    pub fn to_toml(&self) -> String {
+        toml::to_string_pretty(self).expect("an inversion config always serialises")
+    }
+
+    /// Reads and validates a config file; relative paths of the target image and of code
+    /// files become relative to its folder.
+    pub fn load(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
+        let mut cfg = InversionConfig::from_toml(&text, path)?;
+        if let Some(img) = &cfg.target.image
+            && img.is_relative()
+            && let Some(dir) = path.parent()
+        {
+            cfg.target.image = Some(dir.join(img));
+        }
+        if let Some(dir) = path.parent() {
+            for spec in [&mut cfg.target.code, &mut cfg.model.init_code]
+                .into_iter()
+                .flatten()
+            {
+                if dir.join(&*spec).is_file() {
+                    *spec = dir.join(&*spec).to_string_lossy().into_owned();
+                }
+            }
+        }
+        Ok(cfg)
+    }
+
+    /// The same config with every file it names made absolute (against the working
+    /// directory): what a run folder's `config.toml` holds, so that the run means the same
+    /// thing read from any folder (`--resume`, `ifslab run DIR/config.toml`). Built-in code
+    /// names are left as they are.
+    pub fn with_absolute_paths(&self) -> Result<Self> {
+        let abs = |p: &Path| std::path::absolute(p).map_err(|e| Error::file(p, e));
+        let file_spec = |spec: &String| -> Result<String> {
+            let p = Path::new(spec);
+            Ok(if p.is_file() {
+                abs(p)?.to_string_lossy().into_owned()
+            } else {
+                spec.clone()
+            })
+        };
+        let mut cfg = self.clone();
+        if let Some(img) = &self.target.image {
+            cfg.target.image = Some(abs(img)?);
+        }
+        cfg.target.code = self.target.code.as_ref().map(file_spec).transpose()?;
+        cfg.model.init_code = self.model.init_code.as_ref().map(file_spec).transpose()?;
+        if let Some(out) = &self.output {
+            cfg.output = Some(abs(out)?);
+        }
+        Ok(cfg)
+    }
+
+    /// Checks every field before anything runs; errors name the field.
+    pub fn validate(&self) -> Result<()> {
+        if self.iterations == 0 {
+            return Err(Error::InvalidInput(
+                "config field `iterations`: must be at least 1".into(),
+            ));
+        }
+        let t = &self.target;
+        match (&t.image, &t.code) {
+            (Some(_), Some(_)) => {
+                return Err(Error::InvalidInput(
+                    "config section [target]: give either `image` or `code`, not both".into(),
+                ));
+            }
+            (None, None) => {
+                return Err(Error::InvalidInput(
+                    "config section [target]: give `image = \"file.png\"` or `code = \"sierpinski\"`".into(),
+                ));
+            }
+            _ => {}
+        }
+        if !(8..=4096).contains(&t.size) {
+            return Err(Error::InvalidInput(format!(
+                "config field `target.size`: must lie in 8..=4096 pixels, got {}",
+                t.size
+            )));
+        }
+        if !(1..=64).contains(&self.model.maps) {
+            return Err(Error::InvalidInput(format!(
+                "config field `model.maps`: must lie in 1..=64, got {}",
+                self.model.maps
+            )));
+        }
+        if !(self.model.init_noise.is_finite() && self.model.init_noise >= 0.0) {
+            return Err(Error::InvalidInput(format!(
+                "config field `model.init_noise`: must be ≥ 0, got {}",
+                self.model.init_noise
+            )));
+        }
+        in_section("generator", self.game().validate().map_err(Error::from))?;
+        in_section(
+            "renderer",
+            self.splat_config().validate().map_err(Error::from),
+        )?;
+        if let Some(end) = self.renderer.sigma_final
+            && !(end.is_finite() && end > 0.0)
+        {
+            return Err(Error::InvalidInput(format!(
+                "config field `renderer.sigma_final`: must be > 0, got {end}"
+            )));
+        }
+        in_section("loss", self.loss.validate().map_err(Error::from))?;
+        in_section("strategy", self.strategy.validate())
+    }
+
+    /// The chaos-game layout (its seed is set per iteration).
+    pub fn game(&self) -> ChaosGame {
+        let g = &self.generator;
+        ChaosGame {
+            trajectories: g.trajectories,
+            length: g.length,
+            warmup: g.warmup,
+            start_half_width: g.start_half_width,
+            seed: 0,
+        }
+    }
+
+    /// The fused op's configuration.
+    pub fn splat_config(&self) -> SplatConfig {
+        let r = &self.renderer;
+        SplatConfig {
+            width: self.target.size,
+            height: self.target.size,
+            supersample: r.supersample,
+            sigma: r.sigma,
+            radius: r.radius,
+            blend: r.blend,
+            alpha_max: r.alpha_max,
+            game: self.game(),
+            framing: SplatFraming::default(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MINIMAL: &str = "iterations = 10\n[target]\ncode = \"sierpinski\"\n";
+
+    #[test]
+    fn minimal_config_gets_defaults_and_round_trips() {
+        let cfg = InversionConfig::from_toml(MINIMAL, Path::new("c.toml")).unwrap();
+        assert_eq!(cfg.strategy.name(), "hybrid");
+        assert_eq!(cfg.loss, LossConfig::default());
+        let back = InversionConfig::from_toml(&cfg.to_toml(), Path::new("c.toml")).unwrap();
+        assert_eq!(back, cfg);
+    }
+
+    #[test]
+    fn sigma_schedule_is_geometric_and_round_trips() {
+        let text = format!("{MINIMAL}[renderer]\nsigma = 2.0\nsigma_final = 0.5\n");
+        let cfg = InversionConfig::from_toml(&text, Path::new("c.toml")).unwrap();
+        let r = &cfg.renderer;
+        assert_eq!(r.sigma_at(0.0), 2.0);
+        assert!((r.sigma_at(0.5) - 1.0).abs() < 1e-12);
+        assert!((r.sigma_at(1.0) - 0.5).abs() < 1e-12);
+        assert!((r.sigma_at(7.0) - 0.5).abs() < 1e-12, "progress is clamped");
+        let back = InversionConfig::from_toml(&cfg.to_toml(), Path::new("c.toml")).unwrap();
+        assert_eq!(back, cfg);
+        assert_eq!(RendererConfig::default().sigma_at(0.7), 1.0);
+    }
+
+    #[test]
+    fn errors_name_the_field() {
+        let e = |s: &str| {
+            InversionConfig::from_toml(s, Path::new("c.toml"))
+                .unwrap_err()
+                .to_string()
+        };
+        assert!(e(&format!("{MINIMAL}[renderer]\nsigma = -1\n")).contains("renderer.sigma"));
+        assert!(
+            e(&format!("{MINIMAL}[renderer]\nsigma_final = 0\n")).contains("renderer.sigma_final")
+        );
+        assert!(
+            e(&format!(
+                "{MINIMAL}[strategy]\nkind = \"hybrid\"\nanneal_every = 0\n"
+            ))
+            .contains("anneal_every")
+        );
+        assert!(e(&format!("{MINIMAL}[strategy]\nkind = \"magic\"\n")).contains("magic"));
+        assert!(e(&format!("{MINIMAL}[model]\nmapz = 3\n")).contains("mapz"));
+        assert!(e(&format!("{MINIMAL}[loss]\nlpips_weight = -2\n")).contains("lpips_weight"));
+        assert!(e("iterations = 0\n[target]\ncode = \"fern\"\n").contains("iterations"));
+        assert!(e("iterations = 5\n[target]\n").contains("[target]"));
+        assert!(
+            e("iterations = 5\n[target]\ncode = \"fern\"\nimage = \"x.png\"\n")
+                .contains("not both")
+        );
+        assert!(e("this is = = not toml").contains("c.toml"));
+    }
+}

@@ -1,0 +1,28 @@
+//! Image → IFS code: fit the maps of an IFS so that the fused splat op's render matches a
+//! target image, with any of the gradient or annealing strategies.
+//!
+//! - [`target`]: load and frame targets the way the model frames its points;
+//! - [`init`]: the starting code (random, given, or fitted by EM to the target's points);
+//! - [`problem`]: θ → maps → splat → composite loss and its gradient;
+//! - [`config`]: the validated TOML configuration of a run;
+//! - [`run`]: initial code, solver, executor, checkpoint and resume;
+//! - [`mod@landscape`]: the objective on a 2-D slice of parameter space (loss landscapes).
+//!
+//! ## References
+//! - Djeacoumar et al., *Learning Image Fractals Using Chaotic Differentiable Point Splatting*.
+
+pub mod config;
+pub mod init;
+pub mod landscape;
+pub mod problem;
+pub mod run;
+pub mod target;
+
+pub use config::{InitKind, InversionConfig, StrategyConfig, TargetConfig};
+pub use init::initial_theta;
+pub use landscape::{Directions, Landscape, LandscapeConfig, landscape};
+pub use problem::ImageProblem;
+pub use run::{InversionOutcome, ensure_new_run_dir, run_inversion};
+pub use target::{
+    FRAMED_TARGET_FILE, Polarity, frame_target, load_framed_target, load_target, save_framed_target,
+};

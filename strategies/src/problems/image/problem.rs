@@ -1,0 +1,213 @@
+//! The image-inversion problem: θ → maps → fused splat op → composite loss, differentiated
+//! through candle's autograd (the splat's reverse pass is the op's own) and the
+//! parameterisation's chain rule.
+
+use std::borrow::Cow;
+
+use candle_core::{DType, Device, Tensor, Var};
+use ifslab::chaos::mix_seed;
+use ifslab::loss::{ImageLoss, LossBreakdown, LossConfig, MsMse, Objective};
+use ifslab::model::{Affine2, Parameterisation};
+use ifslab::render::splat::{self, SplatConfig, SplatOp, maps_from_tensor, maps_to_tensor};
+
+use crate::driver::{Differentiable, Evaluation};
+use crate::error::{Error, Result};
+use crate::optim::annealing::Anneal;
+use crate::problems::image::config::InversionConfig;
+
+/// Names of the logged loss terms, in column order.
+pub const TERMS: [&str; 5] = ["msmse", "dssim", "lpips", "moments", "regulariser"];
+
+/// Fit a `size × size` target with maps rendered by the fused splat op.
+pub struct ImageProblem {
+    param: Box<dyn Parameterisation>,
+    splat: SplatConfig,
+    objective: Objective,
+    target: Vec<f32>,
+    anneal_mse: MsMse,
+    seed: u64,
+    /// `(σ at t = T, T)` when σ follows a schedule.
+    sigma_schedule: Option<(f64, u64)>,
+}
+
+impl ImageProblem {
+    /// The problem for `target` (row-major `splat.width × splat.height`, values in [0, 1]).
+    pub fn new(
+        param: Box<dyn Parameterisation>,
+        splat: SplatConfig,
+        loss: LossConfig,
+        target: Vec<f32>,
+        seed: u64,
+    ) -> Result<Self> {
+        splat.validate()?;
+        loss.validate()?;
+        if target.len() != splat.width * splat.height {
+            return Err(Error::InvalidInput(format!(
+                "target has {} pixels, the renderer {}×{}",
+                target.len(),
+                splat.width,
+                splat.height
+            )));
+        }
+        let t = Tensor::from_vec(target.clone(), (splat.height, splat.width), &Device::Cpu)
+            .map_err(ifslab::Error::from)?;
+        let anneal_mse = MsMse::new(loss.msmse_levels).with_reduction(loss.msmse_reduction);
+        let objective = Objective::new(loss, &t)?;
+        Ok(ImageProblem {
+            param,
+            splat,
+            objective,
+            target,
+            anneal_mse,
+            seed,
+            sigma_schedule: None,
+        })
+    }
+
+    /// The problem `cfg` describes (parameterisation, renderer with its σ schedule, loss,
+    /// seed) for `target`.
+    pub fn from_config(cfg: &InversionConfig, target: Vec<f32>) -> Result<Self> {
+        let p = ImageProblem::new(
+            cfg.model.parameterisation.build(),
+            cfg.splat_config(),
+            cfg.loss.clone(),
+            target,
+            cfg.seed,
+        )?;
+        match cfg.renderer.sigma_final {
+            Some(end) => p.with_sigma_schedule(end, cfg.iterations),
+            None => Ok(p),
+        }
+    }
+
+    /// Moves σ geometrically from the splat config's σ at iteration 0 to `sigma_final` at
+    /// iteration `iterations` (coarse-to-fine; see `RendererConfig::sigma_final`).
+    pub fn with_sigma_schedule(mut self, sigma_final: f64, iterations: u64) -> Result<Self> {
+        if !(sigma_final.is_finite() && sigma_final > 0.0) {
+            return Err(Error::param(
+                "sigma_final",
+                format!("must be > 0, got {sigma_final}"),
+            ));
+        }
+        self.sigma_schedule = Some((sigma_final, iterations.max(1)));
+        Ok(self)
+    }
+
+    /// The renderer at progress `frac = t/T` of the run.
+    fn splat_at(&self, frac: f64) -> Cow<'_, SplatConfig> {
+        match self.sigma_schedule {
+            None => Cow::Borrowed(&self.splat),
+            Some((end, _)) => {
+                let s0 = self.splat.sigma;
+                Cow::Owned(SplatConfig {
+                    sigma: s0 * (end / s0).powf(frac.clamp(0.0, 1.0)),
+                    ..self.splat.clone()
+                })
+            }
+        }
+    }
+
+    fn progress(&self, iter: u64) -> f64 {
+        self.sigma_schedule
+            .map_or(0.0, |(_, t)| iter as f64 / t as f64)
+    }
+
+    /// The parameterisation θ is decoded with.
+    pub fn parameterisation(&self) -> &dyn Parameterisation {
+        self.param.as_ref()
+    }
+
+    /// The renderer's configuration at the start of the run.
+    pub fn splat_config(&self) -> &SplatConfig {
+        &self.splat
+    }
+
+    /// The renderer's configuration at the end of the run (σ scheduled, if it is).
+    pub fn final_splat_config(&self) -> SplatConfig {
+        self.splat_at(1.0).into_owned()
+    }
+
+    /// The framed target.
+    pub fn target(&self) -> &[f32] {
+        &self.target
+    }
+
+    /// Why LPIPS is not part of the loss, if it is not.
+    pub fn lpips_skip_reason(&self) -> Option<&str> {
+        self.objective.lpips_skip_reason()
+    }
+
+    /// The splat render of θ on random stream `stream`, with the renderer the run ends with.
+    pub fn render(&self, theta: &[f64], stream: u64) -> Result<Vec<f32>> {
+        self.render_at(theta, stream, 1.0)
+    }
+
+    fn render_at(&self, theta: &[f64], stream: u64, frac: f64) -> Result<Vec<f32>> {
+        let maps = self.param.decode(theta)?;
+        let splat = self.splat_at(frac);
+        Ok(splat::forward::<f32>(&splat, &maps, mix_seed(self.seed, stream))?.0)
+    }
+
+    /// The objective's terms at θ on random stream `stream`, without a gradient (for loss
+    /// landscapes and evaluation), with the renderer the run ends with.
+    pub fn loss_breakdown(&self, theta: &[f64], stream: u64) -> Result<LossBreakdown> {
+        let maps = self.param.decode(theta)?;
+        let img = self.render_at(theta, stream, 1.0)?;
+        let pred = Tensor::from_vec(img, (self.splat.height, self.splat.width), &Device::Cpu)
+            .map_err(tensor_err)?;
+        Ok(self.objective.evaluate(&pred, &maps)?.breakdown)
+    }
+}
+
+fn tensor_err(e: candle_core::Error) -> Error {
+    Error::Core(ifslab::Error::from(e))
+}
+
+impl Differentiable for ImageProblem {
+    fn evaluate(&self, theta: &[f64], iter: u64) -> Result<Evaluation> {
+        let maps = self.param.decode(theta)?;
+        let var =
+            Var::from_tensor(&maps_to_tensor(&maps, DType::F32, &Device::Cpu).map_err(tensor_err)?)
+                .map_err(tensor_err)?;
+        let op = SplatOp::new(
+            self.splat_at(self.progress(iter)).into_owned(),
+            mix_seed(self.seed, iter),
+        );
+        let pred = var.as_tensor().apply_op1(op).map_err(tensor_err)?;
+        let ev = self.objective.evaluate(&pred, &maps)?;
+        let grads = ev.image_total.backward().map_err(tensor_err)?;
+        let mut gmaps: Vec<Affine2> = match grads.get(var.as_tensor()) {
+            Some(g) => maps_from_tensor(g).map_err(tensor_err)?,
+            None => vec![Affine2::new(0.0, 0.0, 0.0, 0.0, 0.0, 0.0); maps.len()],
+        };
+        for (g, r) in gmaps.iter_mut().zip(&ev.map_grad) {
+            g.m += r.m;
+            g.b += r.b;
+        }
+        let grad = self.param.backward(theta, &gmaps)?;
+        let b = ev.breakdown;
+        let terms = [b.msmse, b.dssim, b.lpips, b.moments, b.regulariser]
+            .iter()
+            .zip(TERMS)
+            .map(|(v, n)| (n, v.unwrap_or(f64::NAN)))
+            .collect();
+        Ok(Evaluation {
+            loss: b.total,
+            grad,
+            terms,
+        })
+    }
+
+    fn project(&self, theta: &mut [f64]) {
+        self.param.project(theta);
+    }
+}
+
+impl Anneal for ImageProblem {
+    fn anneal_cost(&self, theta: &[f64], stream: u64, frac: f64) -> Result<f64> {
+        let pred = self.render_at(theta, stream, frac)?;
+        Ok(self
+            .anneal_mse
+            .value(&pred, &self.target, self.splat.width, self.splat.height)? as f64)
+    }
+}
