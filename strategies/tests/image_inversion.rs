@@ -174,7 +174,7 @@ fn resume_is_bit_identical() {
     use argmin::core::observers::Observe;
     use argmin::core::{Error as ArgminError, KV, State};
     use ifslab_strategies::driver::GradState;
-    use ifslab_strategies::optim::hybrid::HybridConfig;
+    use ifslab_strategies::optim::hybrid::{ColdHybridConfig, HybridConfig};
 
     /// Fails the run at a given iteration, like a crash.
     struct Crash(u64);
@@ -190,13 +190,16 @@ fn resume_is_bit_identical() {
     let size = 32;
     let t = target("sierpinski", size);
     // Every registered strategy (a new one is covered as soon as it is registered); the
-    // hybrid anneals within these 20 iterations.
+    // hybrids anneal within these 20 iterations.
     let strategies = ifslab_strategies::registry::kinds().into_iter().map(|k| {
         let mut s = StrategyConfig::by_name(k).unwrap();
-        s.update(|h: &mut HybridConfig| {
+        let quick = |h: &mut HybridConfig| {
             h.anneal_every = 4;
             h.annealing.candidates = 2;
-        });
+        };
+        if !s.update(quick) {
+            s.update(|c: &mut ColdHybridConfig| quick(&mut c.0));
+        }
         s
     });
     for strategy in strategies {
