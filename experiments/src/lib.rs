@@ -7,6 +7,7 @@
 //! front ends call the same functions.
 //!
 //! - [`runs::inversion`]: image inversion runs (`ifslab invert`, `ifslab run`, `ifslab demo`);
+//! - [`runs::landscape`]: loss landscapes of a run (`ifslab landscape`);
 //! - [`plot`]: line charts, scatter plots and heat maps with a bundled font;
 //! - [`progress`]: the progress callback;
 //! - [`codes::resolve_code`]: a code from a file or a built-in name.

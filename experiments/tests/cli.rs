@@ -134,6 +134,20 @@ fn quick_inversion_writes_every_output_and_resumes() {
     assert!(!ok && msg.contains("--resume"), "{msg}");
     let (ok, msg) = ifslab(&["invert", "--resume", &o]);
     assert!(ok, "{msg}");
+    // The run folder is enough for a loss landscape around the true code.
+    let png = tmp.path().join("land.png");
+    let (ok, msg) = ifslab(&[
+        "landscape",
+        &o,
+        "--at",
+        "truth",
+        "--resolution",
+        "3",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    assert!(ok && msg.contains("3×3 grid"), "{msg}");
+    assert!(png.is_file() && png.with_extension("csv").is_file());
 }
 
 /// Defect: `--resume` resolved a relative target path against the run folder, and with the

@@ -1,19 +1,13 @@
 //! `ifslab landscape RUN_DIR`: the objective of an inversion run on a 2-D slice of parameter
 //! space through its recovered code (or the target's true code), as a heat map.
 
-use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use anyhow::{Context, bail};
-use ifslab::model::IfsCode;
-use ifslab_strategies::problems::image::{
-    Directions, ImageProblem, InversionConfig, LandscapeConfig, landscape,
-};
+use ifslab_experiments::runs::landscape::{Centre, run_landscape};
+use ifslab_strategies::problems::image::{Directions, LandscapeConfig};
 
-use crate::bars::bar;
-use crate::cmd::resolve_code;
-use ifslab_experiments::plot::{Heat, heatmaps};
-use ifslab_experiments::runs::inversion::{CONFIG_FILE, run_target};
+use crate::bars::Bar;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -67,101 +61,33 @@ fn parse_directions(s: &str, seed: u64) -> anyhow::Result<Directions> {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let cfg_path = a.run_dir.join(CONFIG_FILE);
-    let cfg = InversionConfig::load(&cfg_path)
-        .with_context(|| format!("{} is not a run folder", a.run_dir.display()))?;
-    let directions = parse_directions(&a.directions, a.seed)?;
-    let maps = match a.at {
-        At::Recovered => IfsCode::load(a.run_dir.join("code.json"))
-            .with_context(|| format!("{} has no recovered code", a.run_dir.display()))?
-            .affine2()?,
-        At::Truth => {
-            let Some(spec) = cfg.target.code.as_deref() else {
-                bail!("--at truth needs a run whose target is a code, not an image");
-            };
-            resolve_code(spec)?.affine2()?
-        }
-    };
-    let target = run_target(&cfg, &a.run_dir)?;
-    let problem = ImageProblem::from_config(&cfg, target)?;
-    let theta = problem
-        .parameterisation()
-        .encode(&maps)
-        .context("the centre code cannot be expressed in the run's parameterisation")?;
     let lc = LandscapeConfig {
         resolution: a.resolution,
         extent: a.extent,
-        directions,
+        directions: parse_directions(&a.directions, a.seed)?,
         streams: a.streams,
     };
-    lc.validate(theta.len())?;
-    let pb = bar((lc.resolution * lc.resolution) as u64, "landscape");
-    let l = landscape(&problem, &theta, &lc, &|| pb.inc(1))?;
-    pb.finish_and_clear();
-
-    let out = a.output.unwrap_or_else(|| {
-        let at = match a.at {
-            At::Recovered => "recovered",
-            At::Truth => "truth",
-        };
-        a.run_dir.join(format!("landscape_{at}.png"))
-    });
-    let mut csv = String::from("alpha,beta,total,msmse\n");
-    let n = l.alphas.len();
-    for (k, (t, m)) in l.total.iter().zip(&l.msmse).enumerate() {
-        writeln!(csv, "{},{},{t},{m}", l.alphas[k % n], l.betas[k / n])?;
-    }
-    let csv_path = out.with_extension("csv");
-    std::fs::write(&csv_path, csv).with_context(|| format!("writing {}", csv_path.display()))?;
-    let (ma, mb, mv) = l.minimum();
-    let axes = match lc.directions {
-        Directions::Random { .. } => ("α (direction 1)".to_owned(), "β (direction 2)".to_owned()),
-        Directions::Coordinates { i, j } => (format!("Δθ[{i}]"), format!("Δθ[{j}]")),
+    let centre = match a.at {
+        At::Recovered => Centre::Recovered,
+        At::Truth => Centre::Truth,
     };
-    heatmaps(
-        &out,
-        &format!(
-            "loss landscape around the {} code ({})",
-            match a.at {
-                At::Recovered => "recovered",
-                At::Truth => "true",
-            },
-            cfg.target
-                .code
-                .as_deref()
-                .or(cfg.target.image.as_ref().and_then(|p| p.to_str()))
-                .unwrap_or("target")
-        ),
-        (&axes.0, &axes.1),
-        &l.alphas,
-        &l.betas,
-        &[
-            Heat {
-                title: "objective",
-                values: &l.total,
-            },
-            Heat {
-                title: "multi-scale MSE",
-                values: &l.msmse,
-            },
-        ],
-        &if (ma, mb) == (0.0, 0.0) {
-            vec![("θ* = min", 0.0, 0.0)]
-        } else {
-            vec![("θ*", 0.0, 0.0), ("min", ma, mb)]
-        },
-    )?;
+    let out = a
+        .output
+        .unwrap_or_else(|| a.run_dir.join(format!("landscape_{}.png", centre.name())));
+    let r = run_landscape(&a.run_dir, centre, &lc, &out, Box::new(Bar::default()))?;
+    let n = r.resolution;
+    let (ma, mb, mv) = r.minimum;
     println!(
         "{}: {n}×{n} grid, objective at the centre {:.4}, grid minimum {mv:.4} at (α, β) = ({ma:.3}, {mb:.3}){}",
         out.display(),
-        l.centre_total(),
-        if l.failed.is_empty() {
+        r.centre,
+        if r.failed.is_empty() {
             String::new()
         } else {
             format!(
                 "; {} points had no loss (first: {})",
-                l.failed.len(),
-                l.failed[0]
+                r.failed.len(),
+                r.failed[0]
             )
         }
     );

@@ -1,3 +1,4 @@
 //! Runs as library calls: config → run folder.
 
 pub mod inversion;
+pub mod landscape;
