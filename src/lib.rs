@@ -22,6 +22,7 @@ pub mod io;
 pub mod loss;
 pub mod metrics;
 pub mod model;
+pub mod progress;
 pub mod render;
 
 pub use error::{Error, Result};

@@ -1,25 +1,10 @@
-//! Progress of long work, reported through a callback: the library never draws; the
-//! binary shows bars (indicatif), a sweep may log, a notebook may print.
+//! Progress of long work: the core's callback ([`ifslab::progress::Progress`]), and an argmin
+//! observer that reports an optimisation's iterations to it.
 
 use argmin::core::observers::Observe;
 use argmin::core::{Error as ArgminError, KV, State};
+pub use ifslab::progress::{Progress, Silent};
 use ifslab_strategies::driver::GradState;
-
-/// Receives the progress of one piece of long work.
-pub trait Progress: Send {
-    /// The work starts: `len` steps of `what`.
-    fn start(&mut self, _what: &str, _len: u64) {}
-    /// `done` steps are finished; `message` says how it goes (e.g. the current loss).
-    fn advance(&mut self, _done: u64, _message: &str) {}
-    /// The work is over.
-    fn finish(&mut self) {}
-}
-
-/// Reports nothing.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct Silent;
-
-impl Progress for Silent {}
 
 /// An argmin observer that reports every iteration (and its loss) to a [`Progress`].
 pub struct ProgressObserver {
@@ -35,10 +20,9 @@ impl ProgressObserver {
 
 impl Observe<GradState> for ProgressObserver {
     fn observe_iter(&mut self, state: &GradState, _kv: &KV) -> Result<(), ArgminError> {
-        self.progress.advance(
-            state.get_iter() + 1,
-            &format!("loss {:.5}", state.get_cost()),
-        );
+        self.progress.set_position(state.get_iter() + 1);
+        self.progress
+            .message(&format!("loss {:.5}", state.get_cost()));
         Ok(())
     }
 

@@ -74,7 +74,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let out = a
         .output
         .unwrap_or_else(|| a.run_dir.join(format!("landscape_{}.png", centre.name())));
-    let r = run_landscape(&a.run_dir, centre, &lc, &out, Box::new(Bar::default()))?;
+    let r = run_landscape(&a.run_dir, centre, &lc, &out, &Bar::default())?;
     let n = r.resolution;
     let (ma, mb, mv) = r.minimum;
     println!(

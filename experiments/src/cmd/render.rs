@@ -7,7 +7,7 @@ use ifslab::render::image_io::BitDepth;
 use ifslab::render::{RenderConfig, RenderMode, View, Zoom, render};
 
 use super::resolve_code;
-use crate::bars as progress;
+use crate::bars::{self as progress, Bar};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -114,7 +114,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         ..RenderConfig::default()
     };
     let pb = progress::bar(cfg.points, "points");
-    let raster = render(&maps, &probs, &cfg, Some(&pb))?;
+    let raster = render(&maps, &probs, &cfg, Some(&Bar::of(pb.clone())))?;
     pb.finish_and_clear();
     let depth = if a.sixteen_bit {
         BitDepth::Sixteen

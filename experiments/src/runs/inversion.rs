@@ -152,7 +152,7 @@ pub fn run_and_report(
     cfg: &InversionConfig,
     dir: &Path,
     resume: bool,
-    mut progress: Box<dyn Progress>,
+    progress: Box<dyn Progress>,
 ) -> anyhow::Result<Summary> {
     let size = cfg.target.size;
     let target = if resume {

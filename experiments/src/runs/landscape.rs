@@ -55,7 +55,7 @@ pub fn run_landscape(
     centre: Centre,
     lc: &LandscapeConfig,
     out: &Path,
-    mut progress: Box<dyn Progress>,
+    progress: &dyn Progress,
 ) -> anyhow::Result<LandscapeReport> {
     let cfg_path = run_dir.join(CONFIG_FILE);
     let cfg = InversionConfig::load(&cfg_path)
@@ -80,17 +80,8 @@ pub fn run_landscape(
     lc.validate(theta.len())?;
     let cells = (lc.resolution * lc.resolution) as u64;
     progress.start("landscape", cells);
-    let done = std::sync::atomic::AtomicU64::new(0);
-    let progress = std::sync::Mutex::new(progress);
-    let l = landscape(&problem, &theta, lc, &|| {
-        let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-        if let Ok(mut p) = progress.lock() {
-            p.advance(k, "");
-        }
-    })?;
-    if let Ok(mut p) = progress.lock() {
-        p.finish();
-    }
+    let l = landscape(&problem, &theta, lc, &|| progress.inc(1))?;
+    progress.finish();
 
     let mut csv = String::from("alpha,beta,total,msmse\n");
     let n = l.alphas.len();

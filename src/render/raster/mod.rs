@@ -31,7 +31,6 @@ mod density;
 use std::sync::{Mutex, MutexGuard};
 use std::time::Instant;
 
-use indicatif::ProgressBar;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -39,6 +38,7 @@ use crate::chaos::{Isa, LANES, MapSampler, PointSink, PointStream};
 use crate::error::{Error, Result};
 use crate::model::affine::Map2;
 use crate::model::code::Framing;
+use crate::progress::Progress;
 use crate::render::framing::{FIT_FILL, View, Zoom, fit_window, pilot_bbox, zoom_window};
 
 /// What each pixel measures.
@@ -309,7 +309,7 @@ pub fn render<M: Map2>(
     maps: &[M],
     probs: &[f64],
     cfg: &RenderConfig,
-    progress: Option<&ProgressBar>,
+    progress: Option<&dyn Progress>,
 ) -> Result<Raster> {
     render_with_isa(maps, probs, cfg, progress, Isa::detect())
 }
@@ -320,7 +320,7 @@ pub fn render_with_isa<M: Map2>(
     maps: &[M],
     probs: &[f64],
     cfg: &RenderConfig,
-    progress: Option<&ProgressBar>,
+    progress: Option<&dyn Progress>,
     isa: Isa,
 ) -> Result<Raster> {
     cfg.validate()?;
@@ -378,7 +378,7 @@ fn run_rounds<M: Map2, A: Accumulator, F: Fn() -> A + Sync>(
     stream: &PointStream<'_, M>,
     cfg: &RenderConfig,
     window: &Framing,
-    progress: Option<&ProgressBar>,
+    progress: Option<&dyn Progress>,
     start: Instant,
     make: F,
 ) -> Result<(Vec<f32>, RoundCounts)> {
@@ -437,7 +437,7 @@ fn run_rounds<M: Map2, A: Accumulator, F: Fn() -> A + Sync>(
             break hits;
         }
         if let Some(pb) = progress {
-            pb.inc_length(cfg.points);
+            pb.set_length(generated + cfg.points);
         }
     };
     let mut parts: Vec<A> = accs
