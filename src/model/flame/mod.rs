@@ -30,4 +30,4 @@ pub use genome::{FilterShape, Flame, Kernel, PaletteMode};
 pub use palette::Palette;
 pub use real::{Dual, Real};
 pub use variation::{Variation, VariationKind};
-pub use xform::{Applied, Coefs, IDENTITY, SmoothXform, Xform};
+pub use xform::{Applied, Coefs, IDENTITY, PreparedXform, SmoothXform, Xform};

@@ -296,7 +296,7 @@ pub fn fill_missing(colors: &mut [Option<[f64; 4]>; 256]) -> Result<[[f64; 4]; 2
         let t = (i as f64 - lpos) / (rpos - lpos);
         let (a, b) = (colors[li].expect("known"), colors[ri].expect("known"));
         for k in 0..4 {
-            out[i][k] = a[k] * (1.0 - t) + b[k] * t;
+            out[i][k] = (a[k] * (1.0 - t) + b[k] * t).clamp(0.0, 255.0);
         }
     }
     Ok(out)

@@ -109,6 +109,78 @@ pub struct Applied {
     pub bad: bool,
 }
 
+/// A transform ready for the render loop: zero-weight variations dropped, pre_blur and
+/// the post map resolved, opacity turned into flam3's drawing visibility.
+#[derive(Clone, Debug)]
+pub struct PreparedXform {
+    coefs: Coefs,
+    post: Option<Coefs>,
+    pre_blur: f64,
+    radius: bool,
+    vars: Vec<PreparedVar>,
+    /// Colour index.
+    pub color: f64,
+    /// Colour speed.
+    pub color_speed: f64,
+    /// flam3's visibility (`10^(log₂ opacity)`).
+    pub visibility: f64,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct PreparedVar {
+    kind: VariationKind,
+    weight: f64,
+    params: [f64; MAX_PARAMS],
+    derived: [f64; crate::model::flame::variation::MAX_DERIVED],
+}
+
+impl PreparedXform {
+    /// The transform applied to `p` (flam3's `apply_xform`, without the colour).
+    #[inline(always)]
+    pub fn apply<R: RngCore + ?Sized>(&self, p: [f64; 2], rng: &mut R) -> Applied {
+        let (mut tx, mut ty) = affine(&self.coefs, p[0], p[1]);
+        if self.pre_blur != 0.0 {
+            pre_blur(self.pre_blur, &mut tx, &mut ty, rng);
+        }
+        let f = if self.radius {
+            Pre::new(tx, ty)
+        } else {
+            Pre::without_radius(tx, ty)
+        };
+        let (mut x, mut y) = (0.0, 0.0);
+        for v in &self.vars {
+            let (dx, dy) = eval(
+                v.kind,
+                v.weight,
+                &v.params,
+                &v.derived,
+                &self.coefs,
+                &f,
+                rng,
+            );
+            x += dx;
+            y += dy;
+        }
+        let point = match &self.post {
+            Some(post) => {
+                let (a, b) = affine(post, x, y);
+                [a, b]
+            }
+            None => [x, y],
+        };
+        Applied {
+            point,
+            bad: is_bad_value(point[0]) || is_bad_value(point[1]),
+        }
+    }
+
+    /// The colour coordinate after this transform, from the one before.
+    #[inline(always)]
+    pub fn blend_color(&self, c: f64) -> f64 {
+        self.color_speed * self.color + (1.0 - self.color_speed) * c
+    }
+}
+
 impl Xform {
     /// A transform with the given pre-affine map and variations (sorted into flam3's
     /// order), weight 1 and flam3's other defaults.
@@ -162,42 +234,39 @@ impl Xform {
     }
 
     /// The transform applied to `p`, random variations drawing from `rng`. Zero-weight
-    /// variations are skipped, as in flam3.
-    #[inline]
+    /// variations are skipped, as in flam3. (Renderers apply a [`PreparedXform`], which
+    /// does the same without re-reading the variation list.)
     pub fn apply<R: RngCore + ?Sized>(&self, p: [f64; 2], rng: &mut R) -> Applied {
-        let (mut tx, mut ty) = affine(&self.coefs, p[0], p[1]);
-        if let Some(pb) = self.variation(VariationKind::PreBlur)
-            && pb.weight != 0.0
-        {
-            pre_blur(pb.weight, &mut tx, &mut ty, rng);
-        }
-        let f = Pre::new(tx, ty);
-        let (mut x, mut y) = (0.0, 0.0);
-        for v in &self.variations {
-            if v.weight == 0.0 {
-                continue;
-            }
-            let (dx, dy) = eval(
-                v.kind(),
-                v.weight,
-                v.param_array(),
-                v.derived(),
-                &self.coefs,
-                &f,
-                rng,
-            );
-            x += dx;
-            y += dy;
-        }
-        let point = if self.has_post() {
-            let (a, b) = affine(&self.post, x, y);
-            [a, b]
-        } else {
-            [x, y]
-        };
-        Applied {
-            point,
-            bad: is_bad_value(point[0]) || is_bad_value(point[1]),
+        self.prepare().apply(p, rng)
+    }
+
+    /// The transform in the form the render loop evaluates.
+    pub fn prepare(&self) -> PreparedXform {
+        let pre_blur = self
+            .variation(VariationKind::PreBlur)
+            .map_or(0.0, |v| v.weight);
+        PreparedXform {
+            coefs: self.coefs,
+            post: self.has_post().then_some(self.post),
+            pre_blur,
+            radius: self
+                .variations
+                .iter()
+                .any(|v| v.weight != 0.0 && v.kind().uses_radius()),
+            vars: self
+                .variations
+                .iter()
+                .filter(|v| v.weight != 0.0 && v.kind() != VariationKind::PreBlur)
+                .map(|v| PreparedVar {
+                    kind: v.kind(),
+                    weight: v.weight,
+                    params: *v.param_array(),
+                    derived: *v.derived(),
+                })
+                .collect(),
+            color: self.color,
+            color_speed: self.color_speed,
+            visibility: self.visibility(),
         }
     }
 

@@ -17,7 +17,7 @@ fn four_uniforms<R: RngCore + ?Sized>(rng: &mut R) -> f64 {
     rand01(rng) + rand01(rng) + rand01(rng) + rand01(rng) - 2.0
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn noise<T: Real, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R) -> P<T> {
     let a = rand01(rng) * 2.0 * PI;
     let (s, c) = a.sin_cos();
@@ -27,7 +27,7 @@ pub(super) fn noise<T: Real, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R)
 
 /// julian: one of the `|power|` roots of z^dist, drawn at random.
 /// `d = [|power|, dist/power/2]`.
-#[inline(always)]
+#[inline(never)]
 pub(super) fn julian<T: Real, R: RngCore + ?Sized>(
     w: T,
     p: &[T; 8],
@@ -42,7 +42,7 @@ pub(super) fn julian<T: Real, R: RngCore + ?Sized>(
     (r * c, r * s)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn juliascope<T: Real, R: RngCore + ?Sized>(
     w: T,
     p: &[T; 8],
@@ -61,7 +61,7 @@ pub(super) fn juliascope<T: Real, R: RngCore + ?Sized>(
     (r * c, r * s)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn blur<T: Real, R: RngCore + ?Sized>(w: T, rng: &mut R) -> P<T> {
     let a = rand01(rng) * 2.0 * PI;
     let (s, c) = a.sin_cos();
@@ -69,7 +69,7 @@ pub(super) fn blur<T: Real, R: RngCore + ?Sized>(w: T, rng: &mut R) -> P<T> {
     (r * c, r * s)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn gaussian_blur<T: Real, R: RngCore + ?Sized>(w: T, rng: &mut R) -> P<T> {
     let a = rand01(rng) * 2.0 * PI;
     let (s, c) = a.sin_cos();
@@ -78,7 +78,7 @@ pub(super) fn gaussian_blur<T: Real, R: RngCore + ?Sized>(w: T, rng: &mut R) -> 
 }
 
 /// radial_blur: `d = [sin(angle·π/2), cos(angle·π/2)]` (spin and zoom amounts).
-#[inline(always)]
+#[inline(never)]
 pub(super) fn radial_blur<T: Real, R: RngCore + ?Sized>(
     w: T,
     d: &[T; 4],
@@ -93,7 +93,7 @@ pub(super) fn radial_blur<T: Real, R: RngCore + ?Sized>(
     (ra * c + rz * f.tx, ra * s + rz * f.ty)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn pie<T: Real, R: RngCore + ?Sized>(w: T, p: &[T; 8], rng: &mut R) -> P<T> {
     let (slices, rotation, thickness) = (p[0], p[1], p[2]);
     let sl = c_int(rand01(rng) * slices.v() + 0.5);

@@ -17,18 +17,18 @@ pub(super) fn linear<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     (w * f.tx, w * f.ty)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn sinusoidal<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     (w * f.tx.sin(), w * f.ty.sin())
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn spherical<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     let r2 = w / (f.sumsq + EPS);
     (r2 * f.tx, r2 * f.ty)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn swirl<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     let (c1, c2) = f.sumsq.sin_cos();
     let nx = c1 * f.tx - c2 * f.ty;
@@ -36,27 +36,27 @@ pub(super) fn swirl<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     (w * nx, w * ny)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn horseshoe<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     let r = w / (f.sqrt + EPS);
     ((f.tx - f.ty) * (f.tx + f.ty) * r, f.tx * 2.0 * f.ty * r)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn polar<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     let nx = f.atan_xy() * FRAC_1_PI;
     let ny = f.sqrt - 1.0;
     (w * nx, w * ny)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn handkerchief<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     let a = f.atan_xy();
     let r = f.sqrt;
     (w * r * (a + r).sin(), w * r * (a - r).cos())
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn heart<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     let a = f.sqrt * f.atan_xy();
     let (sa, ca) = a.sin_cos();
@@ -64,7 +64,7 @@ pub(super) fn heart<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     (r * sa, (-r) * ca)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn disc<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     let a = f.atan_xy() * FRAC_1_PI;
     let r = f.sqrt * PI;
@@ -72,7 +72,7 @@ pub(super) fn disc<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     (w * sr * a, w * cr * a)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn spiral<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     let r = f.sqrt + EPS;
     let r1 = w / r;
@@ -80,19 +80,19 @@ pub(super) fn spiral<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     (r1 * (f.cosa() + sr), r1 * (f.sina() - cr))
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn hyperbolic<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     let r = f.sqrt + EPS;
     (w * f.sina() / r, w * f.cosa() * r)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn diamond<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     let (sr, cr) = f.sqrt.sin_cos();
     (w * f.sina() * cr, w * f.cosa() * sr)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn ex<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     let a = f.atan_xy();
     let r = f.sqrt;
@@ -104,7 +104,7 @@ pub(super) fn ex<T: Real>(w: T, f: &Pre<T>) -> P<T> {
 }
 
 /// julia: the square root z ↦ ±√z, the branch drawn at random (one bit).
-#[inline(always)]
+#[inline(never)]
 pub(super) fn julia<T: Real, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R) -> P<T> {
     let mut a = f.atan_xy() * 0.5;
     if rand_bit(rng) {
@@ -115,7 +115,7 @@ pub(super) fn julia<T: Real, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R)
     (r * ca, r * sa)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn bent<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     let mut nx = f.tx;
     let mut ny = f.ty;
@@ -129,7 +129,7 @@ pub(super) fn bent<T: Real>(w: T, f: &Pre<T>) -> P<T> {
 }
 
 /// waves: amplitudes are the coefficients `c`, `d`, periods `e²`, `f²`.
-#[inline(always)]
+#[inline(never)]
 pub(super) fn waves<T: Real>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
     let dx2 = T::cst(1.0) / (c[4] * c[4] + EPS);
     let dy2 = T::cst(1.0) / (c[5] * c[5] + EPS);
@@ -139,14 +139,14 @@ pub(super) fn waves<T: Real>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
 }
 
 /// fisheye, with flam3's swapped output (x' ∝ y, y' ∝ x).
-#[inline(always)]
+#[inline(never)]
 pub(super) fn fisheye<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     let r = w * 2.0 / (f.sqrt + 1.0);
     (r * f.ty, r * f.tx)
 }
 
 /// popcorn: amplitudes are the offsets `e`, `f`.
-#[inline(always)]
+#[inline(never)]
 pub(super) fn popcorn<T: Real>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
     let dx = (f.ty * 3.0).tan();
     let dy = (f.tx * 3.0).tan();
@@ -155,7 +155,7 @@ pub(super) fn popcorn<T: Real>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
     (w * nx, w * ny)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn exponential<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     let dx = w * (f.tx - 1.0).exp();
     let dy = f.ty * PI;
@@ -163,14 +163,14 @@ pub(super) fn exponential<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     (dx * cdy, dx * sdy)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn power<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     let sina = f.sina();
     let r = w * f.sqrt.pow(sina);
     (r * f.cosa(), r * sina)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn cosine<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     let a = f.tx * PI;
     let (sa, ca) = a.sin_cos();
@@ -180,7 +180,7 @@ pub(super) fn cosine<T: Real>(w: T, f: &Pre<T>) -> P<T> {
 }
 
 /// rings: the ring spacing is `e² + ε`.
-#[inline(always)]
+#[inline(never)]
 pub(super) fn rings<T: Real>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
     let dx = c[4] * c[4] + EPS;
     let r = f.sqrt;
@@ -189,7 +189,7 @@ pub(super) fn rings<T: Real>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
 }
 
 /// fan: blade width π(e² + ε), phase `f`.
-#[inline(always)]
+#[inline(never)]
 pub(super) fn fan<T: Real>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
     let dx = (c[4] * c[4] + EPS) * PI;
     let dy = c[5];
@@ -205,7 +205,7 @@ pub(super) fn fan<T: Real>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
     (r * ca, r * sa)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn blob<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (low, high, waves) = (p[0], p[1], p[2]);
     let a = f.atan_xy();
@@ -214,7 +214,7 @@ pub(super) fn blob<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     (w * f.sina() * r, w * f.cosa() * r)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn pdj<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let nx1 = (p[1] * f.tx).cos();
     let nx2 = (p[2] * f.tx).sin();
@@ -223,7 +223,7 @@ pub(super) fn pdj<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     (w * (ny1 - nx1), w * (nx2 - ny2))
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn fan2<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let dy = p[1];
     let dx = (p[0] * p[0] + EPS) * PI;
@@ -240,7 +240,7 @@ pub(super) fn fan2<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     (r * sa, r * ca)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn rings2<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let r = f.sqrt;
     let dx = p[0] * p[0] + EPS;
@@ -249,25 +249,25 @@ pub(super) fn rings2<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     (w * f.sina() * r, w * f.cosa() * r)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn eyefish<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     let r = w * 2.0 / (f.sqrt + 1.0);
     (r * f.tx, r * f.ty)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn bubble<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     let r = w / (f.sumsq * 0.25 + 1.0);
     (r * f.tx, r * f.ty)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn cylinder<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     (w * f.tx.sin(), w * f.ty)
 }
 
 /// perspective: `d = [sin(angle·π/2), dist·cos(angle·π/2)]`.
-#[inline(always)]
+#[inline(never)]
 pub(super) fn perspective<T: Real>(w: T, p: &[T; 8], d: &[T; 4], f: &Pre<T>) -> P<T> {
     let dist = p[1];
     let t = T::cst(1.0) / (dist - f.ty * d[0]);

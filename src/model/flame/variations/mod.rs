@@ -52,6 +52,19 @@ impl<T: Real> Pre<T> {
         }
     }
 
+    /// Without the radius, for transforms none of whose variations read it
+    /// ([`VariationKind::uses_radius`]); `sumsq` and `sqrt` are then NaN.
+    #[inline(always)]
+    pub(crate) fn without_radius(tx: T, ty: T) -> Self {
+        let nan = T::cst(f64::NAN);
+        Pre {
+            tx,
+            ty,
+            sumsq: nan,
+            sqrt: nan,
+        }
+    }
+
     /// flam3's `precalc_atan`: atan2(x, y), the angle from the +y axis.
     #[inline(always)]
     pub(crate) fn atan_xy(&self) -> T {

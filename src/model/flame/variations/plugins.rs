@@ -12,7 +12,7 @@ use crate::model::flame::real::Real;
 type P<T> = (T, T);
 
 /// disc2: `d = [rot·π, sin add, cos add − 1]` (add = twist, scaled beyond ±2π as flam3).
-#[inline(always)]
+#[inline(never)]
 pub(super) fn disc2<T: Real>(w: T, d: &[T; 4], f: &Pre<T>) -> P<T> {
     let t = d[0] * (f.tx + f.ty);
     let (s, c) = t.sin_cos();
@@ -22,7 +22,7 @@ pub(super) fn disc2<T: Real>(w: T, d: &[T; 4], f: &Pre<T>) -> P<T> {
 
 /// super_shape: `p = [rnd, m, n1, n2, n3, holes]`, `d = [m/4, −1/n1]`. Draws one number
 /// whatever `rnd` (which mixes it with the radius).
-#[inline(always)]
+#[inline(never)]
 pub(super) fn super_shape<T: Real, R: RngCore + ?Sized>(
     w: T,
     p: &[T; 8],
@@ -40,7 +40,7 @@ pub(super) fn super_shape<T: Real, R: RngCore + ?Sized>(
     (r * f.tx, r * f.ty)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn flower<T: Real, R: RngCore + ?Sized>(
     w: T,
     p: &[T; 8],
@@ -52,7 +52,7 @@ pub(super) fn flower<T: Real, R: RngCore + ?Sized>(
     (r * f.tx, r * f.ty)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn conic<T: Real, R: RngCore + ?Sized>(
     w: T,
     p: &[T; 8],
@@ -65,7 +65,7 @@ pub(super) fn conic<T: Real, R: RngCore + ?Sized>(
     (r * f.tx, r * f.ty)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn parabola<T: Real, R: RngCore + ?Sized>(
     w: T,
     p: &[T; 8],
@@ -78,7 +78,7 @@ pub(super) fn parabola<T: Real, R: RngCore + ?Sized>(
     (x, y)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn bent2<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let mut nx = f.tx;
     let mut ny = f.ty;
@@ -91,7 +91,7 @@ pub(super) fn bent2<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     (w * nx, w * ny)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn bipolar<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let x2y2 = f.sumsq;
     let t = x2y2 + 1.0;
@@ -109,7 +109,7 @@ pub(super) fn bipolar<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     )
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn boarders<T: Real, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R) -> P<T> {
     let rx = T::cst(f.tx.v().round_ties_even());
     let ry = T::cst(f.ty.v().round_ties_even());
@@ -143,7 +143,7 @@ pub(super) fn boarders<T: Real, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut
     }
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn butterfly<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     // 4/√(3π)
     let wx = w * 1.302_940_031_741_119_7;
@@ -152,7 +152,7 @@ pub(super) fn butterfly<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     (r * f.tx, r * y2)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn cell<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let size = p[0];
     let inv = T::cst(1.0) / size;
@@ -174,7 +174,7 @@ pub(super) fn cell<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     (w * (dx + size * x as f64), -(w * (dy + size * y as f64)))
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn cpow<T: Real, R: RngCore + ?Sized>(
     w: T,
     p: &[T; 8],
@@ -194,7 +194,7 @@ pub(super) fn cpow<T: Real, R: RngCore + ?Sized>(
     (m * c, m * s)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn curve<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (xamp, yamp) = (p[0], p[1]);
     let mut xlen = p[2] * p[2];
@@ -211,7 +211,7 @@ pub(super) fn curve<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     )
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn edisc<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     let tmp = f.sumsq + 1.0;
     let tmp2 = f.tx * 2.0;
@@ -230,7 +230,7 @@ pub(super) fn edisc<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     (w * cshu * csv, w * snhu * snv)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn elliptic<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     let tmp = f.sumsq + 1.0;
     let x2 = f.tx * 2.0;
@@ -250,7 +250,7 @@ pub(super) fn elliptic<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     (x, if f.ty.v() > 0.0 { l } else { -l })
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn escher<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let a = f.atan_yx();
     let lnr = f.sumsq.ln() * 0.5;
@@ -263,7 +263,7 @@ pub(super) fn escher<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     (m * cn, m * sn)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn foci<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     let expx = f.tx.exp() * 0.5;
     let expnx = T::cst(0.25) / expx;
@@ -274,7 +274,7 @@ pub(super) fn foci<T: Real>(w: T, f: &Pre<T>) -> P<T> {
 
 /// lazysusan: `p = [spin, space, twist, x, y]`; the disc of radius `weight` around
 /// `(x, −y)` turns, the rest is pushed out by `space`.
-#[inline(always)]
+#[inline(never)]
 pub(super) fn lazysusan<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (spin, space, twist, lx, ly) = (p[0], p[1], p[2], p[3], p[4]);
     let x = f.tx - lx;
@@ -291,7 +291,7 @@ pub(super) fn lazysusan<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     }
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn loonie<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     let r2 = f.sumsq;
     let w2 = w * w;
@@ -303,7 +303,7 @@ pub(super) fn loonie<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     }
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn modulus<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let wrap = |t: T, m: T| {
         let r = m * 2.0;
@@ -319,7 +319,7 @@ pub(super) fn modulus<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 /// oscilloscope: `p = [separation, frequency, amplitude, damping]`.
-#[inline(always)]
+#[inline(never)]
 pub(super) fn oscilloscope<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (sep, freq, amp, damp) = (p[0], p[1], p[2], p[3]);
     let tpf = freq * (2.0 * PI);
@@ -335,13 +335,13 @@ pub(super) fn oscilloscope<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     }
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn polar2<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     let p2v = w / PI;
     (p2v * f.atan_xy(), p2v / 2.0 * f.sumsq.ln())
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn popcorn2<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (px, py, pc) = (p[0], p[1], p[2]);
     (
@@ -350,7 +350,7 @@ pub(super) fn popcorn2<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     )
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn scry<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     let t = f.sumsq;
     let r = T::cst(1.0) / (f.sqrt * (t + T::cst(1.0) / (w + EPS)));
@@ -358,7 +358,7 @@ pub(super) fn scry<T: Real>(w: T, f: &Pre<T>) -> P<T> {
 }
 
 /// separation: `p = [x, xinside, y, yinside]`.
-#[inline(always)]
+#[inline(never)]
 pub(super) fn separation<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let side = |t: T, s: T, inside: T| {
         let s2 = s * s;
@@ -371,7 +371,7 @@ pub(super) fn separation<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     (side(f.tx, p[0], p[1]), side(f.ty, p[2], p[3]))
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn split<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let y = if (f.tx * p[0] * PI).cos().v() >= 0.0 {
         w * f.ty
@@ -386,7 +386,7 @@ pub(super) fn split<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     (x, y)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn splits<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let x = if f.tx.v() >= 0.0 {
         w * (f.tx + p[0])
@@ -401,7 +401,7 @@ pub(super) fn splits<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     (x, y)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn stripes<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (space, warp) = (p[0], p[1]);
     let roundx = T::cst((f.tx + 0.5).v().floor());
@@ -413,7 +413,7 @@ pub(super) fn stripes<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 /// wedge: `p = [angle, hole, count, swirl]`.
-#[inline(always)]
+#[inline(never)]
 pub(super) fn wedge<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (angle, hole, count, swirl) = (p[0], p[1], p[2], p[3]);
     let r = f.sqrt;
@@ -428,7 +428,7 @@ pub(super) fn wedge<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 
 /// wedge_julia: `p = [angle, count, power, dist]`, `d = [1 − angle·count/(2π), |power|,
 /// dist/power/2]`.
-#[inline(always)]
+#[inline(never)]
 pub(super) fn wedge_julia<T: Real, R: RngCore + ?Sized>(
     w: T,
     p: &[T; 8],
@@ -447,7 +447,7 @@ pub(super) fn wedge_julia<T: Real, R: RngCore + ?Sized>(
 }
 
 /// wedge_sph: `p = [angle, count, hole, swirl]`.
-#[inline(always)]
+#[inline(never)]
 pub(super) fn wedge_sph<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (angle, count, hole, swirl) = (p[0], p[1], p[2], p[3]);
     let r = T::cst(1.0) / (f.sqrt + EPS);
@@ -460,7 +460,7 @@ pub(super) fn wedge_sph<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     (r * co, r * s)
 }
 
-#[inline(always)]
+#[inline(never)]
 pub(super) fn whorl<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let r = f.sqrt;
     let a = if r.v() < w.v() {
@@ -473,7 +473,7 @@ pub(super) fn whorl<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 /// waves2: `p = [freqx, scalex, freqy, scaley]`.
-#[inline(always)]
+#[inline(never)]
 pub(super) fn waves2<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     (
         w * (f.tx + p[1] * (f.ty * p[0]).sin()),
