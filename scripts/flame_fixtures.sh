@@ -3,6 +3,7 @@
 # libflam3-dev, flam3-palette; installed here when missing and when apt-get is available).
 #
 #   scripts/flame_fixtures.sh variations   # tests/fixtures/flame/variations.json
+#   scripts/flame_fixtures.sh images       # tests/fixtures/flame/images/*.flame + flam3's PNGs
 #
 # The fixtures are committed; the tests read them and need no flam3.
 set -euo pipefail
@@ -31,8 +32,55 @@ variations() {
   echo "wrote $dir/variations.json"
 }
 
+# Image fixtures: one flam3-genome random flame per variation (use_vars=N: every transform
+# uses only that variation) and a few mixed ones (flam3-genome's default variation set),
+# resized by a template to SIZE² at QUALITY, each rendered twice by flam3-render on one
+# thread (flam3 is only reproducible single-threaded) with two seeds: NAME.png is the
+# reference, NAME.again.png measures how far two correct renders differ by sampling noise
+# alone. Seeds are fixed, so the files are the same on every run; existing files are kept
+# unless FORCE=1.
+SIZE=${SIZE:-128}
+QUALITY=${QUALITY:-250}
+MIXED=${MIXED:-8}
+images() {
+  need_flam3
+  local out=$dir/images tmp
+  mkdir -p "$out"
+  tmp=$(mktemp -d)
+  echo "<flame size=\"$SIZE $SIZE\" quality=\"$QUALITY\" supersample=\"1\"/>" > "$tmp/template.flame"
+  genome() { # name seed use_vars (empty: flam3-genome's default set) [sed script]
+    local name=$1 seed=$2
+    if [ -n "${FORCE:-}" ] || [ ! -s "$out/$name.flame" ]; then
+      env seed="$seed" isaac_seed="$seed" ${3:+use_vars=$3} template="$tmp/template.flame" \
+        enclosed=0 noedits=1 flam3-genome 2>/dev/null | sed "${4:-}" > "$out/$name.flame"
+    fi
+    for pass in "$name.png $((seed + 7))" "$name.again.png $((seed + 100007))"; do
+      set -- $pass
+      if [ -n "${FORCE:-}" ] || [ ! -s "$out/$1" ]; then
+        in="$out/$name.flame" out="$out/$1" nthreads=1 isaac_seed=$2 verbose=0 \
+          flam3-render >/dev/null 2>&1
+      fi
+    done
+  }
+  for v in $(seq 0 98); do
+    if [ "$v" = 67 ]; then
+      # pre_blur only moves the input of the other variations: alone it draws nothing (and
+      # flam3-genome crashes on it), so its flame is a linear one with pre_blur added.
+      genome v67 1067 0 's/linear="1"/linear="1" pre_blur="0.25"/'
+    else
+      genome "$(printf v%02d "$v")" $((1000 + v)) "$v"
+    fi
+  done
+  for m in $(seq 0 $((MIXED - 1))); do
+    genome "$(printf m%02d "$m")" $((5000 + m)) ""
+  done
+  rm -rf "$tmp"
+  echo "wrote $(ls "$out"/*.flame | wc -l) flames and their flam3 renders to $out"
+}
+
 case "${1:-all}" in
   variations) variations ;;
-  all) variations ;;
-  *) echo "usage: $0 [variations|all]" >&2; exit 2 ;;
+  images) images ;;
+  all) variations; images ;;
+  *) echo "usage: $0 [variations|images|all]" >&2; exit 2 ;;
 esac

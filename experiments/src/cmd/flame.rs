@@ -19,6 +19,16 @@ pub struct Args {
 pub enum Command {
     /// Render every flame of a .flame file (or the one named) to PNG, as flam3-render does.
     Render(RenderArgs),
+    /// SSIM and PSNR of two renders' grey (luminance) images, e.g. ours against flam3's.
+    Compare(CompareArgs),
+}
+
+#[derive(clap::Args, Debug)]
+pub struct CompareArgs {
+    /// First image.
+    pub a: PathBuf,
+    /// Second image, same size.
+    pub b: PathBuf,
 }
 
 #[derive(clap::Args, Debug)]
@@ -55,6 +65,7 @@ pub struct RenderArgs {
 pub fn run(args: Args) -> anyhow::Result<()> {
     match args.command {
         Command::Render(a) => render(a),
+        Command::Compare(a) => compare(a),
     }
 }
 
@@ -152,5 +163,26 @@ fn render(a: RenderArgs) -> anyhow::Result<()> {
             );
         }
     }
+    Ok(())
+}
+
+fn compare(a: CompareArgs) -> anyhow::Result<()> {
+    let ga = ifslab::render::image_io::load_grey(&a.a)?;
+    let gb = ifslab::render::image_io::load_grey(&a.b)?;
+    if (ga.width, ga.height) != (gb.width, gb.height) {
+        bail!(
+            "{} is {}×{} but {} is {}×{}",
+            a.a.display(),
+            ga.width,
+            ga.height,
+            a.b.display(),
+            gb.width,
+            gb.height
+        );
+    }
+    let (w, h) = (ga.width as usize, ga.height as usize);
+    let ssim = ifslab::metrics::ssim(&ga.values, &gb.values, w, h)?;
+    let psnr = ifslab::metrics::psnr(&ga.values, &gb.values, 1.0)?;
+    println!("ssim {ssim:.4} psnr {psnr:.2} dB");
     Ok(())
 }

@@ -207,15 +207,58 @@ impl VariationKind {
         use VariationKind as V;
         !matches!(
             self,
-            V::Arch | V::Auger | V::Bent | V::Bent2 | V::Blur | V::Boarders | V::Butterfly
-                | V::Cell | V::Cos | V::Cosh | V::Cosine | V::Cot | V::Coth | V::Cross | V::Csc
-                | V::Csch | V::Curl | V::Curve | V::Cylinder | V::Disc2 | V::Exp
-                | V::Exponential | V::Flux | V::Foci | V::GaussianBlur | V::Lazysusan
-                | V::Linear | V::Mobius | V::Modulus | V::Noise | V::Oscilloscope
-                | V::Perspective | V::Pie | V::Popcorn | V::Popcorn2 | V::PreBlur
-                | V::Rectangles | V::Sec | V::Sech | V::Separation | V::Sin | V::Sinh
-                | V::Sinusoidal | V::Split | V::Splits | V::Square | V::Stripes | V::Tan
-                | V::Tangent | V::Tanh | V::Waves | V::Waves2
+            V::Arch
+                | V::Auger
+                | V::Bent
+                | V::Bent2
+                | V::Blur
+                | V::Boarders
+                | V::Butterfly
+                | V::Cell
+                | V::Cos
+                | V::Cosh
+                | V::Cosine
+                | V::Cot
+                | V::Coth
+                | V::Cross
+                | V::Csc
+                | V::Csch
+                | V::Curl
+                | V::Curve
+                | V::Cylinder
+                | V::Disc2
+                | V::Exp
+                | V::Exponential
+                | V::Flux
+                | V::Foci
+                | V::GaussianBlur
+                | V::Lazysusan
+                | V::Linear
+                | V::Mobius
+                | V::Modulus
+                | V::Noise
+                | V::Oscilloscope
+                | V::Perspective
+                | V::Pie
+                | V::Popcorn
+                | V::Popcorn2
+                | V::PreBlur
+                | V::Rectangles
+                | V::Sec
+                | V::Sech
+                | V::Separation
+                | V::Sin
+                | V::Sinh
+                | V::Sinusoidal
+                | V::Split
+                | V::Splits
+                | V::Square
+                | V::Stripes
+                | V::Tan
+                | V::Tangent
+                | V::Tanh
+                | V::Waves
+                | V::Waves2
         )
     }
 

@@ -324,8 +324,16 @@ pub(crate) struct Game<'a> {
 
 impl Game<'_> {
     /// One trajectory of `n` plotted samples (after `fuse` unplotted steps), as flam3's
-    /// `flam3_iterate` followed by the bucket accumulation.
-    pub(crate) fn run<R: RngCore>(&self, rng: &mut R, n: u64, hist: &mut Histogram) -> GameStats {
+    /// `flam3_iterate` followed by the bucket accumulation. Points are buffered and added
+    /// to the histogram in batches, as flam3 does: the adds of a batch are independent, so
+    /// their cache misses overlap instead of stalling the iteration.
+    pub(crate) fn run<R: RngCore>(
+        &self,
+        rng: &mut R,
+        n: u64,
+        hist: &mut Histogram,
+        buf: &mut Vec<Hit>,
+    ) -> GameStats {
         let mut st = GameStats::default();
         let mut p = [rand11(rng), rand11(rng)];
         let mut color = rand01(rng);
@@ -336,6 +344,7 @@ impl Game<'_> {
         let mut consec = 0u32;
         let total = n + self.fuse as u64;
         let mut i = 0u64;
+        buf.clear();
         while i < total {
             let k = self.selector.pick(last, rng.next_u32());
             let xf = &self.xforms[k];
@@ -372,16 +381,44 @@ impl Game<'_> {
                 }
                 _ => (p, color),
             };
-            if i >= self.fuse as u64 && vis != 0.0 {
-                if let Some(cell) = self.camera.locate(plot) {
-                    hist.add(cell, self.colors, plot_color, vis);
-                    st.hits += 1;
+            if i >= self.fuse as u64
+                && vis != 0.0
+                && let Some(cell) = self.camera.locate(plot)
+            {
+                buf.push(Hit {
+                    cell: cell as u32,
+                    color: plot_color,
+                    vis,
+                });
+                if buf.len() == HIT_BATCH {
+                    st.hits += self.flush(buf, hist);
                 }
             }
             i += 1;
         }
+        st.hits += self.flush(buf, hist);
         st
     }
+
+    fn flush(&self, buf: &mut Vec<Hit>, hist: &mut Histogram) -> u64 {
+        let n = buf.len() as u64;
+        for h in buf.iter() {
+            hist.add(h.cell as usize, self.colors, h.color, h.vis);
+        }
+        buf.clear();
+        n
+    }
+}
+
+/// Points buffered before they are added to the histogram.
+pub(crate) const HIT_BATCH: usize = 2048;
+
+/// A plotted point waiting for the histogram.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Hit {
+    cell: u32,
+    color: f64,
+    vis: f64,
 }
 
 #[cfg(test)]

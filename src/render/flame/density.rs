@@ -23,6 +23,23 @@ fn bump(a: &mut [f32; 4], c: &[f64; 4]) {
     }
 }
 
+/// Adds `c` to cell `(x, y)` of a band buffer starting at row `top`, if inside the image.
+#[inline(always)]
+fn put_cell(
+    buf: &mut [[f32; 4]],
+    width: usize,
+    height: usize,
+    top: usize,
+    x: isize,
+    y: isize,
+    c: &[f64; 4],
+) {
+    if x >= 0 && (x as usize) < width && y >= 0 && (y as usize) < height {
+        let row = y as usize - top;
+        bump(&mut buf[row * width + x as usize], c);
+    }
+}
+
 /// Adds the log-scaled histogram to `acc` without density estimation.
 pub(crate) fn log_scale(hist: &Histogram, acc: &mut Accum, k1: f64, k2: f64) {
     acc.par_iter_mut()
@@ -77,12 +94,8 @@ pub(crate) fn estimate(
             let top = start.saturating_sub(reach);
             let bottom = (end + reach).min(height);
             let mut buf = vec![[0f32; 4]; (bottom - top) * width];
-            let mut put = |x: isize, y: isize, c: &[f64; 4]| {
-                if x >= 0 && (x as usize) < width && y >= 0 && (y as usize) < height {
-                    let row = y as usize - top;
-                    bump(&mut buf[row * width + x as usize], c);
-                }
-            };
+            let mut put =
+                |x: isize, y: isize, c: &[f64; 4]| put_cell(&mut buf, width, height, top, x, y, c);
             for j in start..end {
                 for i in i0..i1 {
                     let cell = i + j * width;

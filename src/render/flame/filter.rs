@@ -115,12 +115,20 @@ pub fn eval(k: Kernel, x: f64) -> f64 {
         Kernel::Hamming => sinc(x) * (0.54 + 0.46 * (PI * x).cos()),
         Kernel::Lanczos3 => {
             let t = x.abs();
-            let l = if t < 3.0 { sinc(t) * sinc(t / 3.0) } else { 0.0 };
+            let l = if t < 3.0 {
+                sinc(t) * sinc(t / 3.0)
+            } else {
+                0.0
+            };
             l * sinc(x / 3.0)
         }
         Kernel::Lanczos2 => {
             let t = x.abs();
-            let l = if t < 2.0 { sinc(t) * sinc(t / 2.0) } else { 0.0 };
+            let l = if t < 2.0 {
+                sinc(t) * sinc(t / 2.0)
+            } else {
+                0.0
+            };
             l * sinc(x / 2.0)
         }
         Kernel::Quadratic => {
@@ -326,7 +334,10 @@ mod tests {
             assert!((s - 1.0).abs() < 1e-12);
         }
         // flam3's default (Gaussian, radius 0.5, no supersampling): a 3×3 kernel.
-        assert_eq!(SpatialFilter::new(Kernel::Gaussian, 1, 0.5).unwrap().width, 3);
+        assert_eq!(
+            SpatialFilter::new(Kernel::Gaussian, 1, 0.5).unwrap().width,
+            3
+        );
     }
 
     #[test]

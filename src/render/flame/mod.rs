@@ -40,7 +40,7 @@ use crate::error::{Error, Result};
 use crate::io::write_atomic;
 use crate::model::flame::{Flame, PreparedXform};
 
-use chaos::{Camera, Colors, Game, GameStats, Histogram, Selector};
+use chaos::{Camera, Colors, Game, GameStats, HIT_BATCH, Histogram, Selector};
 use filter::{DensityFilters, SpatialFilter};
 use tonemap::Tone;
 
@@ -117,7 +117,11 @@ impl FlameImage {
         let mut out = Vec::with_capacity(self.pixels.len() * 4);
         for p in &self.pixels {
             out.extend([p[0] as u8, p[1] as u8, p[2] as u8]);
-            out.push(if alpha { (p[3] as f64 * 255.0) as u8 } else { 255 });
+            out.push(if alpha {
+                (p[3] as f64 * 255.0) as u8
+            } else {
+                255
+            });
         }
         out
     }
@@ -277,6 +281,7 @@ pub fn render_flame(
             .map(|g| {
                 let mut hist = Histogram::new(cells as usize, separate_count);
                 let mut st = GameStats::default();
+                let mut buf = Vec::with_capacity(HIT_BATCH);
                 let (lo, hi) = (g * trajectories / groups, (g + 1) * trajectories / groups);
                 for t in lo..hi {
                     let n = l.min(per_pass - (t * l).min(per_pass));
@@ -284,7 +289,7 @@ pub fn render_flame(
                         continue;
                     }
                     let mut rng = trajectory_rng(pass_seed, t);
-                    st += game.run(&mut rng, n, &mut hist);
+                    st += game.run(&mut rng, n, &mut hist, &mut buf);
                     if let Some(pb) = progress {
                         pb.inc(n);
                     }

@@ -121,6 +121,19 @@ pub(crate) fn c_int32(x: f64) -> i32 {
     }
 }
 
+/// C's `rint` in the default rounding mode (to nearest, ties to even), inline: adding and
+/// subtracting 2⁵² rounds any |x| < 2⁵² to an integer exactly that way.
+#[inline(always)]
+pub(crate) fn rint(x: f64) -> f64 {
+    const TWO52: f64 = 4_503_599_627_370_496.0;
+    if x.abs() < TWO52 {
+        let r = (x.abs() + TWO52) - TWO52;
+        r.copysign(x)
+    } else {
+        x
+    }
+}
+
 /// [`c_int32`] as a float.
 #[inline(always)]
 pub(crate) fn c_int(x: f64) -> f64 {
@@ -255,4 +268,33 @@ pub(crate) fn pre_blur<R: RngCore + ?Sized>(w: f64, tx: &mut f64, ty: &mut f64, 
     let (s, c) = a.sin_cos();
     *tx += g * c;
     *ty += g * s;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rint_rounds_half_to_even_like_c() {
+        for (x, r) in [
+            (0.5, 0.0),
+            (1.5, 2.0),
+            (2.5, 2.0),
+            (-0.5, -0.0),
+            (-1.5, -2.0),
+            (-2.4, -2.0),
+            (3.7, 4.0),
+            (1e300, 1e300),
+        ] {
+            assert_eq!(rint(x), r, "rint({x})");
+            assert_eq!(rint(x), x.round_ties_even());
+        }
+    }
+
+    #[test]
+    fn c_int_gives_the_x86_indefinite_value_out_of_range() {
+        assert_eq!(c_int32(-2.7), -2);
+        assert_eq!(c_int32(1e10), i32::MIN);
+        assert_eq!(c_int32(f64::NAN), i32::MIN);
+    }
 }

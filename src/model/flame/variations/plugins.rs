@@ -6,7 +6,7 @@ use std::f64::consts::{FRAC_1_PI, FRAC_2_PI, FRAC_PI_2, FRAC_PI_4, PI};
 
 use rand::RngCore;
 
-use super::{EPS, Pre, c_int, c_int32, rand01};
+use super::{EPS, Pre, c_int, c_int32, rand01, rint};
 use crate::model::flame::real::Real;
 
 type P<T> = (T, T);
@@ -111,8 +111,8 @@ pub(super) fn bipolar<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 
 #[inline(never)]
 pub(super) fn boarders<T: Real, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R) -> P<T> {
-    let rx = T::cst(f.tx.v().round_ties_even());
-    let ry = T::cst(f.ty.v().round_ties_even());
+    let rx = T::cst(rint(f.tx.v()));
+    let ry = T::cst(rint(f.ty.v()));
     let ox = f.tx - rx;
     let oy = f.ty - ry;
     if rand01(rng) >= 0.75 {
