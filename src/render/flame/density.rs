@@ -69,7 +69,7 @@ pub(crate) fn estimate(
     k2: f64,
 ) {
     let ss = os / 2;
-    let even = os % 2 == 0;
+    let even = os.is_multiple_of(2);
     let scfact = (os as f64 / (os as f64 + 1.0)).powi(2);
     let lo = os - 1;
     if width <= 2 * lo || height <= 2 * lo {

@@ -260,7 +260,7 @@ impl DensityFilters {
         let mut widths = vec![0.0; max_ind];
         let mut max_filter_index = 0usize;
         let gs = support(Kernel::Gaussian);
-        for fl in 0..max_ind {
+        for (fl, width) in widths.iter_mut().enumerate() {
             let mut h = if fl < keep_thresh {
                 comp_max / ((fl + 1) as f64).powf(curve)
             } else {
@@ -271,7 +271,7 @@ impl DensityFilters {
                 h = comp_min;
                 max_filter_index = fl;
             }
-            widths[fl] = h;
+            *width = h;
             let hi = half as i64;
             let mut sum = 0.0;
             for j in -hi..=hi {

@@ -160,8 +160,8 @@ impl FlameImage {
             Depth::Sixteen => {
                 let mut data: Vec<u8> = Vec::with_capacity(self.pixels.len() * 8);
                 for p in &self.pixels {
-                    for c in 0..3 {
-                        data.extend(((p[c] as f64 * 256.0) as u16).to_be_bytes());
+                    for &v in &p[..3] {
+                        data.extend(((v as f64 * 256.0) as u16).to_be_bytes());
                     }
                     if alpha {
                         data.extend(((p[3] as f64 * 65535.0) as u16).to_be_bytes());
