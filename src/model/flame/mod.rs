@@ -9,6 +9,8 @@
 //! - [`genome`]: a whole flame with its camera and rendering settings;
 //! - [`palette`]: 256-entry palettes and flam3's palette library;
 //! - [`format`]: `.flame` XML read and write;
+//! - [`random`]: random flames in flam3-genome's style, affine codes as flames, the
+//!   attractor's bounding box;
 //!
 //! Rendering lives in [`crate::render::flame`].
 //!
@@ -20,6 +22,7 @@
 pub mod format;
 pub mod genome;
 pub mod palette;
+pub mod random;
 pub mod real;
 pub mod variation;
 pub mod variations;
@@ -28,6 +31,7 @@ pub mod xform;
 pub use format::{flames_to_string, parse_flames, read_flames, write_flames};
 pub use genome::{FilterShape, Flame, Kernel, PaletteMode};
 pub use palette::Palette;
+pub use random::{Bounds, RandomFlameConfig, estimate_bounds, flame_from_affine, random_flame};
 pub use real::{Dual, Real};
 pub use variation::{Variation, VariationKind};
 pub use xform::{Applied, Coefs, IDENTITY, PreparedXform, SmoothXform, Xform};
