@@ -494,7 +494,7 @@ pub fn estimate_bounds(flame: &Flame, eps: f64, samples: usize, seed: u64) -> Re
         .collect();
     if rows
         .iter()
-        .any(|r| !(r.last().copied().unwrap_or(0.0) > 0.0))
+        .any(|r| r.last().is_none_or(|&t| t.is_nan() || t <= 0.0))
     {
         return Err(Error::param(
             "weight",
@@ -570,7 +570,7 @@ pub fn estimate_bounds(flame: &Flame, eps: f64, samples: usize, seed: u64) -> Re
 pub fn frame(flame: &mut Flame, seed: u64) -> Result<()> {
     let b = estimate_bounds(flame, 0.01, 100_000, seed)?;
     let w = b.max[0] - b.min[0];
-    if !(w.is_finite() && w > 0.0) || !b.min.iter().chain(&b.max).all(|v| v.is_finite()) {
+    if !(w.is_finite() && w > 0.0 && b.min.iter().chain(&b.max).all(|v| v.is_finite())) {
         // A degenerate attractor (a point, a vertical line): keep the default camera.
         return Ok(());
     }
