@@ -267,3 +267,80 @@ fn a_diverging_flame_is_reported_and_still_rendered() {
     img.save_png(&out, Default::default(), false).unwrap();
     assert!(out.exists());
 }
+
+/// 256 colours as Apophysis writes them: `<palette count="256" format="RGB">` with six hex
+/// digits per colour.
+fn hex_palette() -> String {
+    let mut s = String::new();
+    for i in 0..256 {
+        if i % 8 == 0 {
+            s.push_str("\n      ");
+        }
+        s.push_str(&format!("{:02X}{:02X}{:02X}", i, 255 - i, (i * 7) % 256));
+    }
+    s
+}
+
+#[test]
+fn apophysis_and_jwildfire_files_load_with_their_extras_kept() {
+    let apo = format!(
+        r#"<Flames name="apo">
+<flame name="Apo-1" version="Apophysis 2.09" size="64 48" center="0.1 -0.2" scale="20"
+       angle="0" rotate="-0" zoom="0" oversample="2" filter="0.2" quality="3" batches="1"
+       background="0 0 0" brightness="4" gamma="4" vibrancy="1" hue="0" estimator_radius="9"
+       estimator_minimum="0" estimator_curve="0.4" enable_de="0" gamma_threshold="0.04">
+   <xform weight="0.5" color="0" symmetry="0" linear="0.5" julia="0.5" chaos="1 0.5"
+          coefs="0.5 0 0 0.5 0 0" post="1 0 0 1 0.2 0" opacity="1" var_color="1"/>
+   <xform weight="0.5" color="1" symmetry="0.5" pdj="1" pdj_a="1.1" pdj_b="-2" pdj_c="0.3"
+          pdj_d="2.4" coefs="0.6 0.1 -0.1 0.6 0.3 0.1" var_color="1"/>
+   <finalxform color="0" symmetry="1" spherical="1" coefs="1 0 0 1 0 0"/>
+   <palette count="256" format="RGB">{}
+   </palette>
+</flame>
+</Flames>"#,
+        hex_palette()
+    );
+    let f = parse_flames(&apo, Path::new("apo.flame"))
+        .unwrap()
+        .remove(0);
+    assert_eq!(f.supersample, 2);
+    assert_eq!(
+        f.xforms[1].color_speed, 0.25,
+        "symmetry s means colour speed (1 − s)/2"
+    );
+    assert_eq!(f.xforms[1].variations[0].param("pdj_b"), Some(-2.0));
+    assert_eq!(f.palette.colors[10], [10.0, 245.0, 70.0, 255.0]);
+    assert!(f.final_xform.is_some());
+    let text = flames_to_string(std::slice::from_ref(&f)).unwrap();
+    for kept in [r#"angle="0""#, r#"enable_de="0""#, r#"var_color="1""#] {
+        assert!(text.contains(kept), "{kept} lost: {text}");
+    }
+    assert_eq!(parse_flames(&text, Path::new("w")).unwrap()[0], f);
+    assert!(render_on(1, &f, 1).stats.hits > 0);
+
+    let jwf = r#"<flame name="JWF" version="JWildfire 7.50" size="40 40" center="0 0" scale="12"
+       rotate="0" filter="0.75" filter_kernel="GAUSSIAN" quality="4" background="0 0 0"
+       bg_transparency="0" brightness="4" saturation="1" gamma="4" gamma_threshold="0.01"
+       vibrancy="1" contrast="1" white_level="220" temporal_samples="1" cam_zoom="1"
+       cam_pitch="0" cam_yaw="0" cam_persp="0" estimator_radius="9" estimator_minimum="0"
+       estimator_curve="0.4" mixer_mode="OFF">
+  <xform weight="1" color="0" mod_gamma="0" mod_gamma_speed="0" mod_contrast="0"
+         mod_saturation="0" mod_hue="0" symmetry="0" material="0" material_speed="0"
+         sinusoidal="0.7" swirl="0.3" coefs="0.7 0.2 -0.2 0.7 0 0" chaos="1"/>
+  <xform weight="1" color="0.5" symmetry="0" curl="1" curl_c1="0.2" curl_c2="0.1"
+         coefs="0.5 0 0 0.5 0.5 0"/>
+  <color index="0" rgb="10 20 30"/><color index="255" rgb="250 240 230"/>
+</flame>"#;
+    let f = parse_flames(jwf, Path::new("jwf.flame")).unwrap().remove(0);
+    assert_eq!(f.xforms.len(), 2);
+    assert_eq!(f.xforms[1].variations[0].param("curl_c1"), Some(0.2));
+    let text = flames_to_string(std::slice::from_ref(&f)).unwrap();
+    for kept in [
+        r#"mod_gamma="0""#,
+        r#"white_level="220""#,
+        r#"material="0""#,
+    ] {
+        assert!(text.contains(kept), "{kept} lost");
+    }
+    assert!(render_on(1, &f, 1).stats.hits > 0);
+}

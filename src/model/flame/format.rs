@@ -873,7 +873,9 @@ fn write_xform(
     }
     attrs.push(("color".into(), fmt_num(x.color)));
     attrs.push(("color_speed".into(), fmt_num(x.color_speed)));
-    if !is_final {
+    // Written for the final transform too, whose `animate` an older `symmetry` attribute
+    // may have cleared, so that a read file writes back to the same flame.
+    if !is_final || x.animate != 1.0 {
         attrs.push(("animate".into(), fmt_num(x.animate)));
     }
     for v in &x.variations {
