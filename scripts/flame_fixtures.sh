@@ -37,8 +37,8 @@ variations() {
 # resized by a template to SIZE² at QUALITY, each rendered twice by flam3-render on one
 # thread (flam3 is only reproducible single-threaded) with two seeds: NAME.png is the
 # reference, NAME.again.png measures how far two correct renders differ by sampling noise
-# alone. Seeds are fixed, so the files are the same on every run; existing files are kept
-# unless FORCE=1.
+# alone. f00–f05 are m06 with camera, filter and tone-map settings changed. Seeds are
+# fixed, so the files are the same on every run; existing files are kept unless FORCE=1.
 SIZE=${SIZE:-128}
 QUALITY=${QUALITY:-250}
 MIXED=${MIXED:-8}
@@ -54,6 +54,16 @@ images() {
       env seed="$seed" isaac_seed="$seed" ${3:+use_vars=$3} template="$tmp/template.flame" \
         enclosed=0 noedits=1 flam3-genome 2>/dev/null | sed "${4:-}" > "$out/$name.flame"
     fi
+    render2 "$name" "$seed"
+  }
+  derived() { # name seed base sed-script: another fixture with settings changed
+    if [ -n "${FORCE:-}" ] || [ ! -s "$out/$1.flame" ]; then
+      sed "$4" "$out/$3.flame" > "$out/$1.flame"
+    fi
+    render2 "$1" "$2"
+  }
+  render2() { # name seed
+    local name=$1 seed=$2
     for pass in "$name.png $((seed + 7))" "$name.again.png $((seed + 100007))"; do
       set -- $pass
       if [ -n "${FORCE:-}" ] || [ ! -s "$out/$1" ]; then
@@ -74,6 +84,13 @@ images() {
   for m in $(seq 0 $((MIXED - 1))); do
     genome "$(printf m%02d "$m")" $((5000 + m)) ""
   done
+  # Camera and tone-map settings flam3-genome leaves at their defaults, on mixed flame m06.
+  derived f00 6000 m06 's/rotate="0"/rotate="30"/; s/background="0 0 0"/background="0.2 0.1 0.3"/'
+  derived f01 6001 m06 's/vibrancy="1"/vibrancy="0.5"/; s/highlight_power="-1"/highlight_power="1"/; s/gamma_threshold="0.01"/gamma_threshold="0.1"/'
+  derived f02 6002 m06 's/palette_mode="step"/palette_mode="linear"/; s/supersample="1"/supersample="2"/'
+  derived f03 6003 m06 's/filter_shape="gaussian"/filter_shape="box"/; s/filter="0.5"/filter="1.2"/'
+  derived f04 6004 m06 's/filter_shape="gaussian"/filter_shape="lanczos2"/; s/filter="0.5"/filter="1.2"/'
+  derived f05 6005 m06 's/estimator_radius="9"/estimator_radius="0"/; s/brightness="4"/brightness="8"/; s/gamma="4"/gamma="2.5"/' 
   rm -rf "$tmp"
   echo "wrote $(ls "$out"/*.flame | wc -l) flames and their flam3 renders to $out"
 }

@@ -4,7 +4,11 @@
 //! Debian's flam3 3.1.1: one `flam3-genome` random flame per variation (`vNN`: every
 //! transform uses only variation NN; `v67`, pre_blur, is a linear flame with pre_blur added
 //! because pre_blur alone draws nothing) and eight mixed flames (`mNN`, flam3-genome's
-//! default variation choice), all at 128² and quality 250, each with two PNGs that
+//! default variation choice) and six copies of `m06` with other settings (`f00` rotate 30°
+//! and a background, `f01` vibrancy 0.5, highlight power 1 and gamma threshold 0.1, `f02`
+//! linear palette and supersample 2, `f03` box and `f04` lanczos2 filters of radius 1.2,
+//! `f05` no density estimation, brightness 8, gamma 2.5), all at 128² and quality 250, each
+//! with two PNGs that
 //! `flam3-render` (one thread) made of it from two seeds. Every flame is rendered here by
 //! [`render_flame`] from the same file and compared with flam3's first PNG by the mean SSIM
 //! of the two luminance images (the tone-mapped log density).
@@ -86,8 +90,8 @@ fn renders_match_flam3_on_its_own_random_flames() {
     let files = fixtures();
     assert_eq!(
         files.len(),
-        99 + 8,
-        "one flame per variation plus 8 mixed ones"
+        99 + 8 + 6,
+        "one flame per variation, 8 mixed ones, 6 with other settings"
     );
     let mut failures = Vec::new();
     let mut lines = Vec::new();

@@ -125,7 +125,14 @@ pub(crate) fn finish(
                 } else {
                     a = 0.0;
                 }
-                o[c] = a.clamp(0.0, 255.0) as f32;
+                // A negative filtered channel makes `powf` NaN (even when multiplied by a
+                // zero `1 − vibrancy`); flam3's clamps, built with -ffast-math, turn it
+                // into 255, which shows as white fringes with negative-lobed filters.
+                o[c] = if a.is_nan() {
+                    255.0
+                } else {
+                    a.clamp(0.0, 255.0)
+                } as f32;
             }
             o[3] = alpha.clamp(0.0, 1.0) as f32;
             *px = o;
