@@ -344,3 +344,31 @@ fn apophysis_and_jwildfire_files_load_with_their_extras_kept() {
     }
     assert!(render_on(1, &f, 1).stats.hits > 0);
 }
+
+#[test]
+fn png_files_hold_the_rendered_values_at_8_and_16_bits() {
+    let f = small(load("m06.flame"), 24, 20.0);
+    let img = render_on(2, &f, 3);
+    let dir = tempfile::tempdir().unwrap();
+    let (p8, p16) = (dir.path().join("a8.png"), dir.path().join("a16.png"));
+    img.save_png(&p8, ifslab::render::flame::Depth::Eight, false)
+        .unwrap();
+    img.save_png(&p16, ifslab::render::flame::Depth::Sixteen, true)
+        .unwrap();
+    let e8 = image::open(&p8).unwrap().to_rgb8();
+    let e16 = image::open(&p16).unwrap();
+    assert!(matches!(e16, image::DynamicImage::ImageRgba16(_)));
+    let e16 = e16.to_rgba16();
+    let mut lit = 0;
+    for (k, px) in img.pixels.iter().enumerate() {
+        let (x, y) = ((k % 24) as u32, (k / 24) as u32);
+        for c in 0..3 {
+            // flam3-render's scales: truncated 8-bit values, 16-bit values up to 255 · 256.
+            assert_eq!(e8.get_pixel(x, y)[c], px[c] as u8);
+            assert_eq!(e16.get_pixel(x, y)[c], (px[c] as f64 * 256.0) as u16);
+        }
+        assert_eq!(e16.get_pixel(x, y)[3], (px[3] as f64 * 65535.0) as u16);
+        lit += (px[0] > 0.0) as usize;
+    }
+    assert!(lit > 24, "the test image should not be black");
+}

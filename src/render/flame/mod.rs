@@ -158,13 +158,14 @@ impl FlameImage {
                 }
             }
             Depth::Sixteen => {
+                // The encoder takes 16-bit samples in native byte order.
                 let mut data: Vec<u8> = Vec::with_capacity(self.pixels.len() * 8);
                 for p in &self.pixels {
                     for &v in &p[..3] {
-                        data.extend(((v as f64 * 256.0) as u16).to_be_bytes());
+                        data.extend(((v as f64 * 256.0) as u16).to_ne_bytes());
                     }
                     if alpha {
-                        data.extend(((p[3] as f64 * 65535.0) as u16).to_be_bytes());
+                        data.extend(((p[3] as f64 * 65535.0) as u16).to_ne_bytes());
                     }
                 }
                 let t = if alpha {
