@@ -362,10 +362,10 @@ fn png_files_hold_the_rendered_values_at_8_and_16_bits() {
     let mut lit = 0;
     for (k, px) in img.pixels.iter().enumerate() {
         let (x, y) = ((k % 24) as u32, (k / 24) as u32);
-        for c in 0..3 {
+        for (c, &v) in px[..3].iter().enumerate() {
             // flam3-render's scales: truncated 8-bit values, 16-bit values up to 255 · 256.
-            assert_eq!(e8.get_pixel(x, y)[c], px[c] as u8);
-            assert_eq!(e16.get_pixel(x, y)[c], (px[c] as f64 * 256.0) as u16);
+            assert_eq!(e8.get_pixel(x, y)[c], v as u8);
+            assert_eq!(e16.get_pixel(x, y)[c], (v as f64 * 256.0) as u16);
         }
         assert_eq!(e16.get_pixel(x, y)[3], (px[3] as f64 * 65535.0) as u16);
         lit += (px[0] > 0.0) as usize;
