@@ -82,12 +82,13 @@ fn multi_flame_files_keep_every_flame_and_its_unknown_attributes() {
         <xform weight="1" color="0" linear="1" coefs="0.5 0 0 0.5 0 0" my_xform_flag="on"/>
         <color index="0" rgb="255 0 0"/><color index="255" rgb="0 0 255"/>
       </flame>
-      <flame name="b" size="16 16" scale="5" palette="12">
+      <flame name="b" size="16 16" scale="5">
         <xform weight="0.5" color="1" julian="1" julian_power="3" julian_dist="1"
                coefs="0.5 0 0 0.5 0.5 0" post="1 0 0 1 0.1 0"/>
         <xform weight="0.5" color="0" spherical="0.5" linear="0.5" chaos="1 0"
                coefs="0.5 0.1 0 0.5 -0.5 0"/>
         <finalxform color="0" color_speed="0" swirl="1" coefs="1 0 0 1 0 0"/>
+        <color index="0" rgb="1 2 3"/>
       </flame></flames>"#;
     let flames = parse_flames(text, Path::new("set.flame")).unwrap();
     assert_eq!(flames.len(), 2);
@@ -371,4 +372,29 @@ fn png_files_hold_the_rendered_values_at_8_and_16_bits() {
         lit += (px[0] > 0.0) as usize;
     }
     assert!(lit > 24, "the test image should not be black");
+}
+
+/// `palette="N"` takes flam3's palette N from its library file (Debian flam3-palette,
+/// installed by scripts/test.sh); without the file the test says so and checks the error.
+#[test]
+fn a_palette_number_comes_from_flam3s_library() {
+    use ifslab::model::flame::palette::{PaletteLibrary, palette_library_path};
+    let text = flame_with(LINEAR, r#"palette="12""#)
+        .replace(r#"<color index="0" rgb="255 255 255"/>"#, "");
+    let parsed = parse_flames(&text, Path::new("p.flame"));
+    let Ok(path) = palette_library_path() else {
+        let e = parsed.unwrap_err().to_string();
+        assert!(e.contains("flam3-palette"), "{e}");
+        eprintln!("note: flam3's palette library is not installed; checked the error only");
+        return;
+    };
+    let lib = PaletteLibrary::load(&path).unwrap();
+    let want = lib.get(12, 0.0).unwrap();
+    assert_eq!(parsed.unwrap()[0].palette, want);
+    let bad = flame_with(LINEAR, r#"palette="123456""#)
+        .replace(r#"<color index="0" rgb="255 255 255"/>"#, "");
+    let e = parse_flames(&bad, Path::new("p.flame"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("123456") && e.contains("palette"), "{e}");
 }
