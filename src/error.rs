@@ -100,6 +100,30 @@ pub enum Error {
         /// What is wrong and how to fix it.
         message: String,
     },
+    /// A `.flame` file (or flam3's palette library) that is not valid XML or does not
+    /// follow the format.
+    #[error("cannot read flame file {path} ({location}): {message}")]
+    FlameFile {
+        /// The file.
+        path: PathBuf,
+        /// Where in it: line and column, flame and transform.
+        location: String,
+        /// What is wrong and what is allowed.
+        message: String,
+    },
+    /// A variation name that flam3 3.1.1 does not have.
+    #[error(
+        "unknown variation `{name}` in {path} ({location}); flam3 3.1.1's 99 variations are \
+         supported (see `ifslab flame info --variations`)"
+    )]
+    UnknownVariation {
+        /// The attribute name taken for a variation.
+        name: String,
+        /// The file.
+        path: PathBuf,
+        /// Flame and transform.
+        location: String,
+    },
     /// A tensor operation (candle) failed.
     #[error("tensor operation failed: {0}")]
     Tensor(#[from] candle_core::Error),

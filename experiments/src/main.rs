@@ -42,6 +42,8 @@ enum Command {
     Landscape(cmd::landscape::Args),
     /// Where the LPIPS weights are looked for; `weights fetch` downloads and converts them.
     Weights(cmd::weights::Args),
+    /// Fractal flames: render .flame files (flam3's algorithm), random flames, info, convert.
+    Flame(cmd::flame::Args),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -57,5 +59,6 @@ fn main() -> anyhow::Result<()> {
         Command::Run(a) => cmd::run::run(a),
         Command::Landscape(a) => cmd::landscape::run(a),
         Command::Weights(a) => cmd::weights::run(a),
+        Command::Flame(a) => cmd::flame::run(a),
     }
 }

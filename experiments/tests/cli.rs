@@ -292,3 +292,112 @@ fn any_registered_strategy_runs_from_a_config() {
         assert!(!ok && msg.contains(want), "{msg}");
     }
 }
+
+#[test]
+fn flame_commands_make_describe_render_and_convert_flames() {
+    let tmp = tempfile::tempdir().unwrap();
+    let p = |name: &str| tmp.path().join(name).to_string_lossy().into_owned();
+    let (ok, msg) = ifslab(&[
+        "flame",
+        "random",
+        "--seed",
+        "4",
+        "--count",
+        "2",
+        "--variations",
+        "julia,spherical,14",
+        "--size",
+        "48",
+        "32",
+        "--quality",
+        "5",
+        "-o",
+        &p("r.flame"),
+    ]);
+    assert!(ok, "{msg}");
+    let (ok, info) = ifslab(&["flame", "info", &p("r.flame")]);
+    assert!(ok, "{info}");
+    assert!(
+        info.contains("random-4") && info.contains("random-5"),
+        "{info}"
+    );
+    assert!(info.contains("attractor box"), "{info}");
+    // Only the variations asked for (julia, spherical, 14 = bent), besides the
+    // linear transforms a symmetry adds.
+    for line in info
+        .lines()
+        .filter(|l| l.contains("xform") && !l.contains("symmetry"))
+    {
+        let vars = line.rsplit("; ").next().unwrap();
+        for v in vars.split(", ") {
+            let name = v.split(' ').next().unwrap();
+            assert!(
+                ["julia", "spherical", "bent"].contains(&name),
+                "{name} in {line}"
+            );
+        }
+    }
+    let (ok, msg) = ifslab(&["flame", "render", &p("r.flame"), "-o", &p("r.png")]);
+    assert!(ok, "{msg}");
+    for i in 0..2 {
+        let img = image::open(p(&format!("r-{i}.png"))).unwrap();
+        assert_eq!((img.width(), img.height()), (48, 32));
+    }
+    // The same seed gives the same file.
+    let (ok, _) = ifslab(&[
+        "flame",
+        "random",
+        "--seed",
+        "4",
+        "--count",
+        "2",
+        "--variations",
+        "julia,spherical,14",
+        "--size",
+        "48",
+        "32",
+        "--quality",
+        "5",
+        "-o",
+        &p("r2.flame"),
+    ]);
+    assert!(ok);
+    assert_eq!(
+        std::fs::read(p("r.flame")).unwrap(),
+        std::fs::read(p("r2.flame")).unwrap()
+    );
+    let (ok, msg) = ifslab(&["flame", "convert", "sierpinski", "-o", &p("s.flame")]);
+    assert!(ok, "{msg}");
+    let (ok, info) = ifslab(&["flame", "info", &p("s.flame")]);
+    assert!(ok && info.matches("linear 1").count() == 3, "{info}");
+    let (ok, list) = ifslab(&["flame", "info", "--variations"]);
+    assert!(ok && list.lines().count() == 99, "{list}");
+}
+
+#[test]
+fn flame_commands_refuse_bad_input() {
+    let tmp = tempfile::tempdir().unwrap();
+    let p = |name: &str| tmp.path().join(name).to_string_lossy().into_owned();
+    let (ok, msg) = ifslab(&[
+        "flame",
+        "random",
+        "--variations",
+        "julia,nosuch",
+        "-o",
+        &p("x"),
+    ]);
+    assert!(!ok && msg.contains("unknown variation `nosuch`"), "{msg}");
+    std::fs::write(
+        p("bad.flame"),
+        r#"<flame size="8 8"><xform weight="1" wibble="1" coefs="1 0 0 1 0 0"/></flame>"#,
+    )
+    .unwrap();
+    let (ok, msg) = ifslab(&["flame", "render", &p("bad.flame"), "-o", &p("b.png")]);
+    assert!(
+        !ok && msg.contains("wibble") && msg.contains("xform 0"),
+        "{msg}"
+    );
+    assert!(!Path::new(&p("b.png")).exists());
+    let (ok, msg) = ifslab(&["flame", "render", &p("missing.flame"), "-o", &p("b.png")]);
+    assert!(!ok && msg.contains("missing.flame"), "{msg}");
+}

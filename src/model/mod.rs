@@ -12,10 +12,13 @@
 //! - [`code`]: the JSON code file, validated on load.
 //! - [`library`]: Sierpiński, fern, Koch, carpet, dragon, … by name.
 //! - [`random`]: the Anderson–Farrell random-code sampler.
+//! - [`flame`]: fractal flames — flam3's 99 variations, transforms with exact Jacobians,
+//!   `.flame` files.
 
 pub mod affine;
 pub mod code;
 pub mod diff_map;
+pub mod flame;
 pub mod library;
 pub mod param;
 pub mod probs;

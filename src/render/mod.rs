@@ -9,8 +9,12 @@
 //! - [`splat`]: the differentiable Gaussian point splatter (fused chaos game + splat with a
 //!   hand-written reverse pass), also as a candle `CustomOp1`.
 //!
+//! - [`flame`]: the fractal flame renderer (flam3's algorithm: colour + density
+//!   histogram, density estimation, log tone map), deterministic and parallel.
+//!
 //! The differentiable SDF rasteriser joins here as `sdf`.
 
+pub mod flame;
 pub mod framing;
 pub mod image_io;
 pub mod raster;

@@ -3,6 +3,7 @@
 pub mod codes;
 pub mod demo;
 pub mod fit_points;
+pub mod flame;
 pub mod invert;
 pub mod landscape;
 pub mod render;

@@ -1,0 +1,454 @@
+//! `ifslab flame …`: fractal flames — render `.flame` files like flam3-render, make random
+//! flames like flam3-genome, describe flames, turn affine codes into flames.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, bail};
+use ifslab::model::flame::{
+    Flame, RandomFlameConfig, VariationKind, estimate_bounds, flame_from_affine, random_flame,
+    read_flames, write_flames,
+};
+use ifslab::render::flame::{Depth, FlameRenderConfig, render_flame};
+
+use crate::bars::{self as progress, Bar};
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(clap::Subcommand, Debug)]
+pub enum Command {
+    /// Render every flame of a .flame file (or the one named) to PNG, as flam3-render does.
+    Render(RenderArgs),
+    /// Random flames in flam3-genome's style, written as a .flame file.
+    Random(RandomArgs),
+    /// Describe the flames of a file: transforms, variations, estimated attractor box.
+    Info(InfoArgs),
+    /// An affine IFS code (JSON file or built-in name) as a linear flame.
+    Convert(ConvertArgs),
+    /// SSIM and PSNR of two renders' grey (luminance) images, e.g. ours against flam3's.
+    Compare(CompareArgs),
+}
+
+#[derive(clap::Args, Debug)]
+pub struct RandomArgs {
+    /// Seed of the first genome (the others use seed + 1, seed + 2, …).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Variations to draw from, by name or flam3 number, comma-separated (all 99 if absent).
+    #[arg(long, value_delimiter = ',')]
+    pub variations: Vec<String>,
+    /// Number of transforms (flam3's random 2–6, maybe with a final transform, if absent).
+    #[arg(long)]
+    pub xforms: Option<usize>,
+    /// Number of flames in the file.
+    #[arg(long, default_value_t = 1)]
+    pub count: usize,
+    /// Image size WIDTH HEIGHT written into the genomes.
+    #[arg(long, num_args = 2, value_names = ["WIDTH", "HEIGHT"], default_values_t = [512, 512])]
+    pub size: Vec<u32>,
+    /// Samples per pixel written into the genomes.
+    #[arg(long, default_value_t = 100.0)]
+    pub quality: f64,
+    /// Drafts tried per genome before giving up on flam3-genome's brightness test (mean
+    /// grey ≥ 20/255, ≥ 1 % black and ≤ 5 % white pixels on a quick 100² render).
+    #[arg(long, default_value_t = 10)]
+    pub tries: u32,
+    /// Output .flame file.
+    #[arg(short, long, default_value = "random.flame")]
+    pub output: PathBuf,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct InfoArgs {
+    /// The .flame file (optional with --variations).
+    pub file: Option<PathBuf>,
+    /// List the 99 supported variations and their parameters with flam3's defaults.
+    #[arg(long)]
+    pub variations: bool,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct ConvertArgs {
+    /// The affine code: a JSON code file or a built-in code's name.
+    pub code: String,
+    /// Output .flame file.
+    #[arg(short, long, default_value = "code.flame")]
+    pub output: PathBuf,
+    /// Image size WIDTH HEIGHT.
+    #[arg(long, num_args = 2, value_names = ["WIDTH", "HEIGHT"], default_values_t = [512, 512])]
+    pub size: Vec<u32>,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct CompareArgs {
+    /// First image.
+    pub a: PathBuf,
+    /// Second image, same size.
+    pub b: PathBuf,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct RenderArgs {
+    /// The .flame file (flam3, Apophysis and JWildfire's flam3 subset).
+    pub file: PathBuf,
+    /// Output PNG; with several flames, `-N` (the flame's index) is added before `.png`.
+    #[arg(short, long, default_value = "flame.png")]
+    pub output: PathBuf,
+    /// Only the flame with this name.
+    #[arg(long)]
+    pub name: Option<String>,
+    /// Output size WIDTH HEIGHT; the framing is kept (pixels per unit scale with the height,
+    /// as a flam3 template does).
+    #[arg(long, num_args = 2, value_names = ["WIDTH", "HEIGHT"])]
+    pub size: Option<Vec<u32>>,
+    /// Samples per output pixel (the flame's `quality`).
+    #[arg(long)]
+    pub quality: Option<f64>,
+    /// Histogram supersampling per side (the flame's `supersample`).
+    #[arg(long)]
+    pub supersample: Option<u32>,
+    /// Seed of the chaos game (the same seed gives the same image on any thread count).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// 16 bits per channel.
+    #[arg(long)]
+    pub sixteen_bit: bool,
+    /// Keep transparency (alpha channel) instead of compositing onto the background.
+    #[arg(long)]
+    pub alpha: bool,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    match args.command {
+        Command::Render(a) => render(a),
+        Command::Random(a) => random(a),
+        Command::Info(a) => info(a),
+        Command::Convert(a) => convert(a),
+        Command::Compare(a) => compare(a),
+    }
+}
+
+/// `flame` with its size and quality overridden as the command line asks.
+pub fn apply_overrides(
+    flame: &mut Flame,
+    size: Option<&[u32]>,
+    quality: Option<f64>,
+    supersample: Option<u32>,
+) -> anyhow::Result<()> {
+    if let Some(s) = size {
+        let (w, h) = (s[0], s[1]);
+        if w == 0 || h == 0 {
+            bail!("--size must be at least 1×1, got {w}×{h}");
+        }
+        flame.scale *= h as f64 / flame.size[1] as f64;
+        flame.size = [w, h];
+    }
+    if let Some(q) = quality {
+        if !(q.is_finite() && q > 0.0) {
+            bail!("--quality must be > 0, got {q}");
+        }
+        flame.quality = q;
+    }
+    if let Some(s) = supersample {
+        flame.supersample = s;
+    }
+    Ok(())
+}
+
+fn output_for(base: &Path, index: usize, several: bool) -> PathBuf {
+    if !several {
+        return base.to_owned();
+    }
+    let stem = base
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "flame".into());
+    base.with_file_name(format!("{stem}-{index}.png"))
+}
+
+fn render(a: RenderArgs) -> anyhow::Result<()> {
+    let flames = read_flames(&a.file)?;
+    let chosen: Vec<(usize, Flame)> = match &a.name {
+        Some(n) => {
+            let found: Vec<_> = flames
+                .into_iter()
+                .enumerate()
+                .filter(|(_, f)| f.name.as_deref() == Some(n.as_str()))
+                .collect();
+            if found.is_empty() {
+                bail!("no flame named `{n}` in {}", a.file.display());
+            }
+            found
+        }
+        None => flames.into_iter().enumerate().collect(),
+    };
+    let several = chosen.len() > 1;
+    let cfg = FlameRenderConfig {
+        seed: a.seed,
+        transparent: a.alpha,
+        ..FlameRenderConfig::default()
+    };
+    for (i, mut flame) in chosen {
+        apply_overrides(&mut flame, a.size.as_deref(), a.quality, a.supersample)?;
+        let out = output_for(&a.output, i, several);
+        let pb = progress::bar(0, "samples");
+        let img = render_flame(&flame, &cfg, Some(&Bar::of(pb.clone())))
+            .with_context(|| format!("rendering {} of {}", flame.label(), a.file.display()))?;
+        pb.finish_and_clear();
+        let depth = if a.sixteen_bit {
+            Depth::Sixteen
+        } else {
+            Depth::Eight
+        };
+        img.save_png(&out, depth, a.alpha)?;
+        let s = &img.stats;
+        let bad = s.badvals as f64 / s.samples.max(1) as f64;
+        eprintln!(
+            "{}: {}×{}, {} samples in {:.2} s ({:.1} M/s), badvals {:.3e} → {}",
+            flame.label(),
+            img.width,
+            img.height,
+            s.samples,
+            s.seconds,
+            s.samples as f64 / s.seconds / 1e6,
+            bad,
+            out.display()
+        );
+        if bad > 0.01 {
+            eprintln!(
+                "warning: {:.1}% of the steps left the plane (NaN or beyond ±1e10) and restarted \
+                 from a random point: the flame's orbit diverges",
+                100.0 * bad
+            );
+        }
+    }
+    Ok(())
+}
+
+fn compare(a: CompareArgs) -> anyhow::Result<()> {
+    let ga = ifslab::render::image_io::load_grey(&a.a)?;
+    let gb = ifslab::render::image_io::load_grey(&a.b)?;
+    if (ga.width, ga.height) != (gb.width, gb.height) {
+        bail!(
+            "{} is {}×{} but {} is {}×{}",
+            a.a.display(),
+            ga.width,
+            ga.height,
+            a.b.display(),
+            gb.width,
+            gb.height
+        );
+    }
+    let (w, h) = (ga.width as usize, ga.height as usize);
+    let ssim = ifslab::metrics::ssim(&ga.values, &gb.values, w, h)?;
+    let psnr = ifslab::metrics::psnr(&ga.values, &gb.values, 1.0)?;
+    println!("ssim {ssim:.4} psnr {psnr:.2} dB");
+    Ok(())
+}
+
+fn parse_variation(s: &str) -> anyhow::Result<VariationKind> {
+    let s = s.trim();
+    if let Ok(n) = s.parse::<usize>() {
+        return VariationKind::from_index(n)
+            .with_context(|| format!("variation number {n} does not exist (0–98)"));
+    }
+    VariationKind::from_name(s)
+        .with_context(|| format!("unknown variation `{s}` (see `ifslab flame info --variations`)"))
+}
+
+/// flam3-genome's test of a draft: a quick 100² render of the framed genome at quality 1,
+/// whose mean grey must reach 20/255 with ≥ 1 % black and ≤ 5 % white pixels.
+fn looks_usable(flame: &Flame) -> anyhow::Result<bool> {
+    let mut t = flame.clone();
+    t.scale *= 100.0 / t.size[0] as f64;
+    t.size = [100, 100];
+    t.quality = 1.0;
+    t.supersample = 1;
+    t.estimator_radius = 0.0;
+    let img = render_flame(&t, &FlameRenderConfig::default(), None)?;
+    let n = img.pixels.len() as f64;
+    let rgb: Vec<[u8; 3]> = img
+        .pixels
+        .iter()
+        .map(|p| [p[0] as u8, p[1] as u8, p[2] as u8])
+        .collect();
+    let avg = rgb
+        .iter()
+        .map(|c| c.iter().map(|&v| v as f64).sum::<f64>())
+        .sum::<f64>()
+        / (3.0 * n);
+    let black = rgb.iter().filter(|c| **c == [0, 0, 0]).count() as f64 / n;
+    let white = rgb.iter().filter(|c| **c == [255, 255, 255]).count() as f64 / n;
+    Ok(avg >= 20.0 && black >= 0.01 && white <= 0.05)
+}
+
+fn random(a: RandomArgs) -> anyhow::Result<()> {
+    let variations = a
+        .variations
+        .iter()
+        .filter(|s| !s.trim().is_empty())
+        .map(|s| parse_variation(s))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    if a.count == 0 {
+        bail!("--count must be at least 1");
+    }
+    if a.tries == 0 {
+        bail!("--tries must be at least 1");
+    }
+    let cfg = RandomFlameConfig {
+        variations,
+        xforms: a.xforms,
+        size: [a.size[0], a.size[1]],
+        quality: a.quality,
+    };
+    let mut flames = Vec::with_capacity(a.count);
+    for k in 0..a.count as u64 {
+        let seed = a.seed.wrapping_add(k);
+        let mut chosen = None;
+        for t in 0..a.tries as u64 {
+            // Each draft has its own seed, derived from the genome's.
+            let f = random_flame(ifslab::chaos::mix_seed(seed, t), &cfg)?;
+            let ok = looks_usable(&f)?;
+            chosen = Some(f);
+            if ok {
+                break;
+            }
+            if t + 1 == a.tries as u64 {
+                eprintln!(
+                    "warning: genome {k}: no draft passed the brightness test in {} tries; \
+                     keeping the last",
+                    a.tries
+                );
+            }
+        }
+        let mut f = chosen.expect("at least one try");
+        f.name = Some(format!("random-{seed}"));
+        flames.push(f);
+    }
+    write_flames(&a.output, &flames)?;
+    eprintln!("wrote {} flame(s) to {}", flames.len(), a.output.display());
+    Ok(())
+}
+
+fn info(a: InfoArgs) -> anyhow::Result<()> {
+    if a.variations {
+        for k in VariationKind::ALL {
+            let params: Vec<String> = k.params().iter().map(|(n, d)| format!("{n}={d}")).collect();
+            println!(
+                "{:2} {:<14} {}{}",
+                k.index(),
+                k.name(),
+                if k.is_random() { "(random) " } else { "" },
+                params.join(" ")
+            );
+        }
+    }
+    let Some(file) = &a.file else {
+        if !a.variations {
+            bail!("give a .flame file, or --variations");
+        }
+        return Ok(());
+    };
+    let flames = read_flames(file)?;
+    for (i, f) in flames.iter().enumerate() {
+        println!(
+            "[{i}] {}: {}×{}, centre ({}, {}), scale {}, zoom {}, rotate {}°, quality {}, \
+             supersample {}",
+            f.label(),
+            f.size[0],
+            f.size[1],
+            f.center[0],
+            f.center[1],
+            f.scale,
+            f.zoom,
+            f.rotate,
+            f.quality,
+            f.supersample
+        );
+        let describe = |x: &ifslab::model::flame::Xform| {
+            let vars: Vec<String> = x
+                .variations
+                .iter()
+                .map(|v| {
+                    let ps: Vec<String> = v
+                        .kind()
+                        .params()
+                        .iter()
+                        .zip(v.params())
+                        .map(|((n, _), p)| format!("{n}={p}"))
+                        .collect();
+                    if ps.is_empty() {
+                        format!("{} {}", v.kind().name(), v.weight)
+                    } else {
+                        format!("{} {} ({})", v.kind().name(), v.weight, ps.join(", "))
+                    }
+                })
+                .collect();
+            let c = &x.coefs;
+            format!(
+                "color {} speed {} opacity {}; coefs [{} {} {} {} {} {}]{}; {}",
+                x.color,
+                x.color_speed,
+                x.opacity,
+                c[0],
+                c[1],
+                c[2],
+                c[3],
+                c[4],
+                c[5],
+                if x.has_post() { " + post" } else { "" },
+                vars.join(", ")
+            )
+        };
+        for (k, x) in f.xforms.iter().enumerate() {
+            println!(
+                "  xform {k}{}: weight {}, {}{}",
+                if x.from_symmetry { " (symmetry)" } else { "" },
+                x.weight,
+                describe(x),
+                if x.chaos.is_empty() {
+                    String::new()
+                } else {
+                    format!(", xaos {:?}", x.chaos)
+                }
+            );
+        }
+        if let Some(x) = &f.final_xform {
+            println!("  final: {}", describe(x));
+        }
+        match estimate_bounds(f, 0.01, 100_000, 1) {
+            Ok(b) => println!(
+                "  attractor box (98 % of 100 000 orbit points): x {:.6} … {:.6}, y {:.6} … {:.6}; \
+                 bad values {:.2} %",
+                b.min[0],
+                b.max[0],
+                b.min[1],
+                b.max[1],
+                100.0 * b.badvals as f64 / b.samples.max(1) as f64
+            ),
+            Err(e) => println!("  attractor box: {e}"),
+        }
+    }
+    Ok(())
+}
+
+fn convert(a: ConvertArgs) -> anyhow::Result<()> {
+    let code = crate::cmd::resolve_code(&a.code)?;
+    if code.dim() != 2 {
+        bail!("{} is a {}-D code; flames are 2-D", a.code, code.dim());
+    }
+    let maps = code.affine2()?;
+    let probs = code.evaluation_probabilities()?;
+    let flame = flame_from_affine(code.name.as_deref(), &maps, &probs, [a.size[0], a.size[1]])?;
+    write_flames(&a.output, std::slice::from_ref(&flame))?;
+    eprintln!(
+        "wrote {} ({} linear transforms) to {}",
+        flame.label(),
+        flame.xforms.len(),
+        a.output.display()
+    );
+    Ok(())
+}

@@ -1,0 +1,112 @@
+//! Variations 82–95: the complex exponential, logarithm, and the complex trigonometric and
+//! hyperbolic functions of z = x + iy (as flam3 writes them: `den` factors and signs
+//! included).
+
+use super::Pre;
+use crate::model::flame::real::Real;
+
+type P<T> = (T, T);
+
+#[inline(never)]
+pub(super) fn exp<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+    let e = f.tx.exp();
+    let (s, c) = f.ty.sin_cos();
+    (w * e * c, w * e * s)
+}
+
+#[inline(never)]
+pub(super) fn log<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+    (w * 0.5 * f.sumsq.ln(), w * f.atan_yx())
+}
+
+#[inline(never)]
+pub(super) fn sin<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+    let (s, c) = f.tx.sin_cos();
+    let (sh, ch) = (f.ty.sinh(), f.ty.cosh());
+    (w * s * ch, w * c * sh)
+}
+
+#[inline(never)]
+pub(super) fn cos<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+    let (s, c) = f.tx.sin_cos();
+    let (sh, ch) = (f.ty.sinh(), f.ty.cosh());
+    (w * c * ch, -(w * s * sh))
+}
+
+#[inline(never)]
+pub(super) fn tan<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+    let (s, c) = (f.tx * 2.0).sin_cos();
+    let (sh, ch) = ((f.ty * 2.0).sinh(), (f.ty * 2.0).cosh());
+    let den = T::cst(1.0) / (c + ch);
+    (w * den * s, w * den * sh)
+}
+
+#[inline(never)]
+pub(super) fn sec<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+    let (s, c) = f.tx.sin_cos();
+    let (sh, ch) = (f.ty.sinh(), f.ty.cosh());
+    let den = T::cst(2.0) / ((f.tx * 2.0).cos() + (f.ty * 2.0).cosh());
+    (w * den * c * ch, w * den * s * sh)
+}
+
+#[inline(never)]
+pub(super) fn csc<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+    let (s, c) = f.tx.sin_cos();
+    let (sh, ch) = (f.ty.sinh(), f.ty.cosh());
+    let den = T::cst(2.0) / ((f.ty * 2.0).cosh() - (f.tx * 2.0).cos());
+    (w * den * s * ch, -(w * den * c * sh))
+}
+
+#[inline(never)]
+pub(super) fn cot<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+    let (s, c) = (f.tx * 2.0).sin_cos();
+    let (sh, ch) = ((f.ty * 2.0).sinh(), (f.ty * 2.0).cosh());
+    let den = T::cst(1.0) / (ch - c);
+    (w * den * s, w * den * -1.0 * sh)
+}
+
+#[inline(never)]
+pub(super) fn sinh<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+    let (s, c) = f.ty.sin_cos();
+    let (sh, ch) = (f.tx.sinh(), f.tx.cosh());
+    (w * sh * c, w * ch * s)
+}
+
+#[inline(never)]
+pub(super) fn cosh<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+    let (s, c) = f.ty.sin_cos();
+    let (sh, ch) = (f.tx.sinh(), f.tx.cosh());
+    (w * ch * c, w * sh * s)
+}
+
+#[inline(never)]
+pub(super) fn tanh<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+    let (s, c) = (f.ty * 2.0).sin_cos();
+    let (sh, ch) = ((f.tx * 2.0).sinh(), (f.tx * 2.0).cosh());
+    let den = T::cst(1.0) / (c + ch);
+    (w * den * sh, w * den * s)
+}
+
+#[inline(never)]
+pub(super) fn sech<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+    let (s, c) = f.ty.sin_cos();
+    let (sh, ch) = (f.tx.sinh(), f.tx.cosh());
+    let den = T::cst(2.0) / ((f.ty * 2.0).cos() + (f.tx * 2.0).cosh());
+    (w * den * c * ch, -(w * den * s * sh))
+}
+
+#[inline(never)]
+pub(super) fn csch<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+    let (s, c) = f.ty.sin_cos();
+    let (sh, ch) = (f.tx.sinh(), f.tx.cosh());
+    let den = T::cst(2.0) / ((f.tx * 2.0).cosh() - (f.ty * 2.0).cos());
+    (w * den * sh * c, -(w * den * ch * s))
+}
+
+#[inline(never)]
+pub(super) fn coth<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+    let (s, c) = (f.ty * 2.0).sin_cos();
+    let (sh, ch) = ((f.tx * 2.0).sinh(), (f.tx * 2.0).cosh());
+    let den = T::cst(1.0) / (ch - c);
+    (w * den * sh, w * den * s)
+}
