@@ -574,3 +574,49 @@ impl Map2 for SmoothXform {
         self.0.apply(p, &mut NoRng).point
     }
 }
+
+/// A deterministic flame transform is a differentiable map of the plane: its θ is the
+/// transform's flat parameter vector ([`Xform::params`]), its products the exact
+/// forward-mode derivatives of the same formula code as the forward pass.
+impl crate::model::diff_map::DiffMap2 for SmoothXform {
+    fn n_params(&self) -> usize {
+        self.0.n_params()
+    }
+
+    fn write_params(&self, out: &mut [f64]) {
+        out.copy_from_slice(&self.0.params());
+    }
+
+    fn set_params(&mut self, p: &[f64]) {
+        self.0
+            .set_params(p)
+            .expect("a parameter vector of the transform's own length");
+    }
+
+    fn vjp_point(&self, x: [f64; 2], lambda: [f64; 2]) -> [f64; 2] {
+        SmoothXform::vjp_point(self, x, lambda)
+    }
+
+    fn vjp_params(&self, x: [f64; 2], lambda: [f64; 2], grad: &mut [f64]) {
+        SmoothXform::vjp_params(self, x, lambda, grad)
+    }
+}
+
+/// The regulariser acts on the pre-affine step (θ's first six entries, flam3's `a b c d e f`:
+/// `x' = a·x + c·y + e`, `y' = b·x + d·y + f`).
+impl crate::model::diff_map::AffinePart for SmoothXform {
+    fn affine_part(&self) -> crate::model::Affine2 {
+        let c = &self.0.coefs;
+        crate::model::Affine2::new(c[0], c[2], c[1], c[3], c[4], c[5])
+    }
+
+    fn affine_part_backward(&self, g: &crate::model::Affine2, grad: &mut [f64]) {
+        let m = &g.m;
+        for (k, v) in [m[(0, 0)], m[(1, 0)], m[(0, 1)], m[(1, 1)], g.b[0], g.b[1]]
+            .into_iter()
+            .enumerate()
+        {
+            grad[k] += v;
+        }
+    }
+}
