@@ -16,12 +16,13 @@
 //! would drown f64 finite differences (the f32 end-to-end test in the strategies crate
 //! includes it).
 
+mod common;
+
 use candle_core::{Device, Tensor, Var};
-use ifslab::chaos::ChaosGame;
 use ifslab::loss::{LossConfig, Objective};
 use ifslab::model::diff_map::{flat_params, set_flat_params, vjp_check};
 use ifslab::model::{Affine2, AffinePart, DiffMap2, Map2};
-use ifslab::render::splat::{self, Blend, SplatConfig, SplatFraming, SplatOp};
+use ifslab::render::splat::{self, SplatConfig, SplatOp};
 use proptest::prelude::*;
 
 /// `x ↦ y + w·sin(y)`, `y = A·x + b`; parameters `[a, b, c, d, e, f, w]`.
@@ -113,26 +114,6 @@ proptest! {
     }
 }
 
-fn config() -> SplatConfig {
-    SplatConfig {
-        width: 32,
-        height: 28,
-        supersample: 2,
-        sigma: 1.3,
-        radius: 3.0,
-        blend: Blend::Coverage,
-        alpha_max: 0.99,
-        game: ChaosGame {
-            trajectories: 24,
-            length: 110,
-            warmup: 10,
-            start_half_width: 2.0,
-            seed: 0,
-        },
-        framing: SplatFraming::default(),
-    }
-}
-
 /// A three-map Sierpiński-like code bent by the sinusoidal variation.
 fn maps(w: [f64; 3]) -> Vec<Sinusoidal> {
     let a = [
@@ -182,7 +163,7 @@ fn objective_and_grad(
 /// differences of the same objective on the same trajectories.
 #[test]
 fn whole_objective_gradient_through_a_nonlinear_map_matches_finite_differences() {
-    let cfg = config();
+    let cfg = common::small_splat();
     let (target, _) = splat::forward::<f64>(&cfg, &maps([0.3, -0.2, 0.25]), 99).unwrap();
     let target = Tensor::from_vec(target, (cfg.height, cfg.width), &Device::Cpu).unwrap();
     let loss = LossConfig {
@@ -196,25 +177,9 @@ fn whole_objective_gradient_through_a_nonlinear_map_matches_finite_differences()
     assert!(value.is_finite() && value > 0.0);
     let f = |t: &[f64]| objective_and_grad(&objective, &cfg, t, seed).0;
     // Small h: the splat's footprint vanishes continuously at its cut-off but with a kink.
-    let h = 1e-7;
-    let mut scale = 0.0f64;
-    let mut worst = 0.0f64;
-    for k in 0..theta.len() {
-        let mut t = theta.clone();
-        t[k] += h;
-        let up = f(&t);
-        t[k] -= 2.0 * h;
-        let fd = (up - f(&t)) / (2.0 * h);
-        scale = scale.max(fd.abs());
-        worst = worst.max((fd - grad[k]).abs());
-        assert!(
-            (fd - grad[k]).abs() <= 2e-4 * (1.0 + fd.abs()),
-            "map {} parameter {}: analytic {} vs finite difference {fd}",
-            k / 7,
-            k % 7,
-            grad[k]
-        );
-    }
+    let (scale, worst) = common::check_against_central_differences(f, &theta, &grad, 1e-7, |k| {
+        format!("map {} parameter {}", k / 7, k % 7)
+    });
     assert!(
         scale > 1e-3,
         "gradients should not all vanish (max |fd| = {scale})"
@@ -232,13 +197,8 @@ fn whole_objective_gradient_through_a_nonlinear_map_matches_finite_differences()
 /// type as for affine maps.
 #[test]
 fn nonlinear_maps_are_deterministic_across_thread_counts() {
-    let cfg = SplatConfig {
-        game: ChaosGame {
-            trajectories: 300,
-            ..config().game
-        },
-        ..config()
-    };
+    let mut cfg = common::small_splat();
+    cfg.game.trajectories = 300;
     let m = maps([0.1, 0.05, -0.1]);
     let w: Vec<f32> = (0..cfg.width * cfg.height)
         .map(|i| ((i * 37 % 101) as f32 / 50.0 - 1.0) * 0.3)
