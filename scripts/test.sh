@@ -13,6 +13,6 @@ if ! command -v flam3-render >/dev/null 2>&1 && command -v apt-get >/dev/null 2>
   sudo=""
   [ "$(id -u)" = 0 ] || sudo="sudo -n"
   { $sudo apt-get update -qq && $sudo apt-get install -y -qq flam3-utils libflam3-dev flam3-palette >/dev/null; } \
-    || echo "note: flam3 unavailable; the flam3-render check will be skipped"
+    || echo "warning: flam3 unavailable; the flam3-render test will fail"
 fi
 cargo test --workspace
