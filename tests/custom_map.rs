@@ -141,21 +141,12 @@ fn objective_and_grad(
     let dev = Device::Cpu;
     let var = Var::from_tensor(&Tensor::from_vec(theta.to_vec(), (3, 7), &dev).unwrap()).unwrap();
     let proto = m[0];
-    let pred = var
-        .as_tensor()
-        .apply_op1(SplatOp::uniform(cfg.clone(), seed, proto))
-        .unwrap();
-    let ev = objective.evaluate_params(&pred, &m).unwrap();
-    let grads = ev.image_total.backward().unwrap();
-    let g: Vec<f64> = grads
-        .get(var.as_tensor())
-        .unwrap()
-        .flatten_all()
-        .unwrap()
-        .to_vec1()
-        .unwrap();
-    let total = g.iter().zip(&ev.param_grad).map(|(a, b)| a + b).collect();
-    (ev.breakdown.total, total)
+    common::objective_and_grad(
+        objective,
+        &m,
+        &var,
+        SplatOp::uniform(cfg.clone(), seed, proto),
+    )
 }
 
 /// θ → non-linear maps → fused splat (chaos game, fitted framing, coverage, 2× pooling) →

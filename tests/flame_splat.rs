@@ -66,21 +66,8 @@ fn objective_and_grad(
     let dev = Device::Cpu;
     let var =
         Var::from_tensor(&params_to_tensor(&maps, candle_core::DType::F64, &dev).unwrap()).unwrap();
-    let pred = var
-        .as_tensor()
-        .apply_op1(SplatOp::with_maps(cfg.clone(), seed, maps.clone()))
-        .unwrap();
-    let ev = objective.evaluate_params(&pred, &maps).unwrap();
-    let grads = ev.image_total.backward().unwrap();
-    let g: Vec<f64> = grads
-        .get(var.as_tensor())
-        .unwrap()
-        .flatten_all()
-        .unwrap()
-        .to_vec1()
-        .unwrap();
-    let total = g.iter().zip(&ev.param_grad).map(|(a, b)| a + b).collect();
-    (ev.breakdown.total, total)
+    let op = SplatOp::with_maps(cfg.clone(), seed, maps.clone());
+    common::objective_and_grad(objective, &maps, &var, op)
 }
 
 #[test]

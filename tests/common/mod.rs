@@ -53,3 +53,27 @@ pub fn check_against_central_differences(
     }
     (scale, worst)
 }
+
+/// The whole objective at `maps` and its gradient with respect to their flat parameters:
+/// `params` (a candle variable holding them in the layout `op` expects) rendered by `op`,
+/// the objective's image terms differentiated by autograd, plus the regulariser's own
+/// gradient.
+pub fn objective_and_grad<M: ifslab::model::AffinePart + Send + Sync + 'static>(
+    objective: &ifslab::loss::Objective,
+    maps: &[M],
+    params: &candle_core::Var,
+    op: ifslab::render::splat::SplatOp<M>,
+) -> (f64, Vec<f64>) {
+    let pred = params.as_tensor().apply_op1(op).unwrap();
+    let ev = objective.evaluate_params(&pred, maps).unwrap();
+    let grads = ev.image_total.backward().unwrap();
+    let g: Vec<f64> = grads
+        .get(params.as_tensor())
+        .unwrap()
+        .flatten_all()
+        .unwrap()
+        .to_vec1()
+        .unwrap();
+    let total = g.iter().zip(&ev.param_grad).map(|(a, b)| a + b).collect();
+    (ev.breakdown.total, total)
+}
