@@ -1,10 +1,9 @@
-//! `ifslab run CONFIG.toml`: the inversion a config file describes.
+//! `ifslab run CONFIG.toml`: the run a config file describes (its `problem` key says which
+//! problem; image inversion when it has none).
 
 use std::path::PathBuf;
 
-use ifslab_strategies::problems::image::InversionConfig;
-
-use ifslab_experiments::runs::inversion::{output_dir, run_and_report};
+use ifslab_experiments::runs::RunConfig;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -19,16 +18,9 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let cfg = InversionConfig::load(&a.config)?;
-    let dir = output_dir(a.output, &cfg, "out/run");
-    let s = run_and_report(&cfg, &dir, a.resume, Box::new(crate::bars::Bar::default()))?;
-    println!(
-        "{}: {} iterations of {} in {:.1} s, {}",
-        dir.display(),
-        s.iterations,
-        s.strategy,
-        s.seconds,
-        s.scores()
-    );
+    let cfg = RunConfig::load(&a.config)?;
+    let dir = cfg.output_dir(a.output, "out/run");
+    let r = cfg.run(&dir, a.resume, Box::new(crate::bars::Bar::default()))?;
+    println!("{}: {}", dir.display(), r.headline);
     Ok(())
 }

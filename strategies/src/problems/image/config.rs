@@ -331,24 +331,30 @@ impl InversionConfig {
     /// files become relative to its folder.
     pub fn load(path: &Path) -> Result<Self> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
-        let mut cfg = InversionConfig::from_toml(&text, path)?;
-        if let Some(img) = &cfg.target.image
+        let cfg = InversionConfig::from_toml(&text, path)?;
+        Ok(match path.parent() {
+            Some(dir) => cfg.relative_to(dir),
+            None => cfg,
+        })
+    }
+
+    /// The same config with its relative file names (target image, code files that exist
+    /// there) read as relative to `dir`, the folder of the file the config came from.
+    pub fn relative_to(mut self, dir: &Path) -> Self {
+        if let Some(img) = &self.target.image
             && img.is_relative()
-            && let Some(dir) = path.parent()
         {
-            cfg.target.image = Some(dir.join(img));
+            self.target.image = Some(dir.join(img));
         }
-        if let Some(dir) = path.parent() {
-            for spec in [&mut cfg.target.code, &mut cfg.model.init_code]
-                .into_iter()
-                .flatten()
-            {
-                if dir.join(&*spec).is_file() {
-                    *spec = dir.join(&*spec).to_string_lossy().into_owned();
-                }
+        for spec in [&mut self.target.code, &mut self.model.init_code]
+            .into_iter()
+            .flatten()
+        {
+            if dir.join(&*spec).is_file() {
+                *spec = dir.join(&*spec).to_string_lossy().into_owned();
             }
         }
-        Ok(cfg)
+        self
     }
 
     /// The same config with every file it names made absolute (against the working
