@@ -293,6 +293,54 @@ fn any_registered_strategy_runs_from_a_config() {
     }
 }
 
+/// A map type other than the paper's affine maps, end to end through `ifslab run`: the config
+/// names the family, the run fits similitudes (4 numbers per map), writes a code whose maps
+/// are similitudes, and resumes like any run.
+#[test]
+fn a_registered_map_family_runs_from_a_config() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = tmp.path().join("sim.toml");
+    std::fs::write(
+        &cfg,
+        "seed = 2\niterations = 6\ncheckpoint_every = 3\n[target]\ncode = \"sierpinski\"\n\
+         size = 32\n[model]\nfamily = \"similitude\"\ninit = \"random\"\n\
+         [generator]\ntrajectories = 100\nlength = 40\n[strategy]\nkind = \"adam\"\n",
+    )
+    .unwrap();
+    let out = tmp.path().join("run");
+    let (ok, msg) = ifslab(&["run", cfg.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert!(ok, "{msg}");
+    let written = std::fs::read_to_string(out.join("config.toml")).unwrap();
+    assert!(written.contains("family = \"similitude\""), "{written}");
+    let code = ifslab::model::IfsCode::load(out.join("code.json")).unwrap();
+    for m in code.affine2().unwrap() {
+        let (c0, c1) = (m.m.column(0), m.m.column(1));
+        assert!(
+            (c0.norm() - c1.norm()).abs() < 1e-9 && c0.dot(&c1).abs() < 1e-9,
+            "not a similitude: {m:?}"
+        );
+    }
+    let ckpt = std::fs::read_to_string(out.join("checkpoint.json")).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&ckpt).unwrap();
+    assert_eq!(
+        v["state"]["param"].as_array().map(Vec::len),
+        Some(12),
+        "θ holds (s, φ, tx, ty) per map"
+    );
+
+    std::fs::write(
+        &cfg,
+        "iterations = 4\n[target]\ncode = \"sierpinski\"\n[model]\nfamily = \"bezier\"\n",
+    )
+    .unwrap();
+    let o = tmp.path().join("bad");
+    let (ok, msg) = ifslab(&["run", cfg.to_str().unwrap(), "-o", o.to_str().unwrap()]);
+    assert!(
+        !ok && msg.contains("model.family") && msg.contains("similitude"),
+        "{msg}"
+    );
+}
+
 #[test]
 fn flame_commands_make_describe_render_and_convert_flames() {
     let tmp = tempfile::tempdir().unwrap();

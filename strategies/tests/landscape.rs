@@ -5,7 +5,9 @@ use ifslab::chaos::ChaosGame;
 use ifslab::loss::LossConfig;
 use ifslab::model::{ParamKind, library};
 use ifslab::render::splat::{self, SplatConfig};
-use ifslab_strategies::problems::image::{Directions, ImageProblem, LandscapeConfig, landscape};
+use ifslab_strategies::problems::image::{
+    AffineModel, Directions, ImageProblem, LandscapeConfig, landscape,
+};
 
 fn problem(size: usize) -> (ImageProblem, Vec<f64>) {
     let maps = library::builtin("sierpinski").unwrap().affine2().unwrap();
@@ -28,8 +30,15 @@ fn problem(size: usize) -> (ImageProblem, Vec<f64>) {
         lpips_weight: 0.0,
         ..LossConfig::default()
     };
-    let p = ImageProblem::new(ParamKind::Svd.build(), splat, loss, target, 3).unwrap();
-    let theta = p.parameterisation().encode(&maps).unwrap();
+    let p = ImageProblem::new(
+        Box::new(AffineModel(ParamKind::Svd.build())),
+        splat,
+        loss,
+        target,
+        3,
+    )
+    .unwrap();
+    let theta = p.model().encode(&maps).unwrap();
     (p, theta)
 }
 

@@ -74,9 +74,9 @@ pub fn run_landscape(
     let target = run_target(&cfg, run_dir)?;
     let problem = ImageProblem::from_config(&cfg, target)?;
     let theta = problem
-        .parameterisation()
+        .model()
         .encode(&maps)
-        .context("the centre code cannot be expressed in the run's parameterisation")?;
+        .context("the centre code cannot be expressed in the run's model")?;
     lc.validate(theta.len())?;
     let cells = (lc.resolution * lc.resolution) as u64;
     progress.start("landscape", cells);

@@ -38,13 +38,16 @@ fn default_size() -> usize {
     128
 }
 
-/// The model: how many maps, how θ is parameterised, how it starts.
+/// The model: which map type, how many maps, how θ is parameterised, how it starts.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ModelConfig {
+    /// The map type: a name in [`MODELS`](crate::problems::image::MODELS) (`affine`, the
+    /// default; `similitude`).
+    pub family: String,
     /// Number of maps.
     pub maps: usize,
-    /// Parameterisation of θ.
+    /// Parameterisation of θ (affine maps).
     pub parameterisation: ParamKind,
     /// How the initial code is chosen (random or em) when `init_code` is not given.
     pub init: InitKind,
@@ -57,9 +60,19 @@ pub struct ModelConfig {
     pub init_noise: f64,
 }
 
+impl ModelConfig {
+    /// The model this config names (its `family`, with its `parameterisation`).
+    pub fn build(&self) -> Result<Box<dyn crate::problems::image::AnyModel>> {
+        Ok((crate::problems::image::find_model(&self.family)?.build)(
+            self,
+        ))
+    }
+}
+
 impl Default for ModelConfig {
     fn default() -> Self {
         ModelConfig {
+            family: "affine".into(),
             maps: 3,
             parameterisation: ParamKind::Svd,
             init: InitKind::Random,
@@ -410,6 +423,8 @@ impl InversionConfig {
                 t.size
             )));
         }
+        crate::problems::image::model::find_model(&self.model.family)
+            .map_err(|e| Error::InvalidInput(format!("config field `model.family`: {e}")))?;
         if !(1..=64).contains(&self.model.maps) {
             return Err(Error::InvalidInput(format!(
                 "config field `model.maps`: must lie in 1..=64, got {}",

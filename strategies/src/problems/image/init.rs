@@ -10,7 +10,7 @@
 
 use ifslab::chaos::{mix_seed, trajectory_rng};
 use ifslab::model::random::sample_code;
-use ifslab::model::{Affine2, IfsCode, Parameterisation, library};
+use ifslab::model::{Affine2, IfsCode, library};
 use nalgebra::{Matrix2, Vector2};
 use rand::Rng;
 use rand_distr::StandardNormal;
@@ -18,6 +18,7 @@ use rand_distr::StandardNormal;
 use crate::error::{Error, Result};
 use crate::problems::em::{EmConfig, PointSet, fit};
 use crate::problems::image::config::{InitKind, InversionConfig};
+use crate::problems::image::model::AnyModel;
 
 /// Points drawn from a `size × size` image with probability ∝ intensity, jittered inside
 /// their pixel, in coordinates `[−1, 1]²` (y up).
@@ -98,7 +99,7 @@ fn fit_offsets(maps: &mut [Affine2], bound: f64) {
 /// `model.init_noise` Gaussian noise is added.
 pub fn initial_theta(
     cfg: &InversionConfig,
-    param: &dyn Parameterisation,
+    model: &dyn AnyModel,
     target: &[f32],
 ) -> Result<Vec<f64>> {
     let n = cfg.model.maps;
@@ -128,13 +129,13 @@ pub fn initial_theta(
     if cfg.model.init_code.is_none() {
         fit_offsets(&mut maps, 0.9);
     }
-    let mut theta = param.encode(&maps)?;
+    let mut theta = model.encode(&maps)?;
     if cfg.model.init_noise > 0.0 {
         let mut rng = trajectory_rng(mix_seed(seed, u64::MAX), 0);
         for t in theta.iter_mut() {
             *t += cfg.model.init_noise * rng.sample::<f64, _>(StandardNormal);
         }
-        param.project(&mut theta);
+        model.project(&mut theta);
     }
     Ok(theta)
 }

@@ -185,7 +185,7 @@ pub fn landscape(
             "θ has a non-finite value at index {i}"
         )));
     }
-    let maps = problem.parameterisation().decode(theta)?.len().max(1);
+    let maps = problem.model().n_maps(theta)?.max(1);
     let block = theta.len() / maps;
     let (d1, d2) = directions(theta, block, &cfg.directions);
     let n = cfg.resolution;
@@ -202,7 +202,7 @@ pub fn landscape(
                 .zip(d1.iter().zip(&d2))
                 .map(|(t, (u, v))| t + a * u + b * v)
                 .collect();
-            problem.parameterisation().project(&mut th);
+            problem.model().project(&mut th);
             let centre = a == 0.0 && b == 0.0;
             let (mut t_sum, mut m_sum) = (0.0, 0.0);
             for s in 0..cfg.streams {

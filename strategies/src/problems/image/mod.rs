@@ -3,6 +3,8 @@
 //!
 //! - [`target`]: load and frame targets the way the model frames its points;
 //! - [`init`]: the starting code (random, given, or fitted by EM to the target's points);
+//! - [`model`]: θ ↔ maps of one type (affine under a parameterisation, similitudes, …): the
+//!   open set of map types an inversion can fit (`[model] family`);
 //! - [`problem`]: θ → maps → splat → composite loss and its gradient;
 //! - [`config`]: the validated TOML configuration of a run;
 //! - [`run`]: initial code, solver, executor, checkpoint and resume;
@@ -14,6 +16,7 @@
 pub mod config;
 pub mod init;
 pub mod landscape;
+pub mod model;
 pub mod problem;
 pub mod run;
 pub mod target;
@@ -21,6 +24,7 @@ pub mod target;
 pub use config::{InitKind, InversionConfig, StrategyConfig, TargetConfig};
 pub use init::initial_theta;
 pub use landscape::{Directions, Landscape, LandscapeConfig, landscape};
+pub use model::{AffineModel, AnyModel, ImageModel, MODELS, SimilitudeModel, find_model};
 pub use problem::ImageProblem;
 pub use run::{InversionOutcome, ensure_new_run_dir, run_inversion};
 pub use target::{

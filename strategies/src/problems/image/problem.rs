@@ -4,23 +4,23 @@
 
 use std::borrow::Cow;
 
-use candle_core::{DType, Device, Tensor, Var};
+use candle_core::{Device, Tensor};
 use ifslab::chaos::mix_seed;
 use ifslab::loss::{ImageLoss, LossBreakdown, LossConfig, MsMse, Objective};
-use ifslab::model::{Affine2, Parameterisation};
-use ifslab::render::splat::{self, SplatConfig, SplatOp, maps_from_tensor, maps_to_tensor};
+use ifslab::render::splat::SplatConfig;
 
 use crate::driver::{Differentiable, Evaluation};
 use crate::error::{Error, Result};
 use crate::optim::annealing::Anneal;
 use crate::problems::image::config::InversionConfig;
+use crate::problems::image::model::AnyModel;
 
 /// Names of the logged loss terms, in column order.
 pub const TERMS: [&str; 5] = ["msmse", "dssim", "lpips", "moments", "regulariser"];
 
-/// Fit a `size × size` target with maps rendered by the fused splat op.
+/// Fit a `size × size` target with the maps of a model rendered by the fused splat op.
 pub struct ImageProblem {
-    param: Box<dyn Parameterisation>,
+    model: Box<dyn AnyModel>,
     splat: SplatConfig,
     objective: Objective,
     target: Vec<f32>,
@@ -31,9 +31,10 @@ pub struct ImageProblem {
 }
 
 impl ImageProblem {
-    /// The problem for `target` (row-major `splat.width × splat.height`, values in [0, 1]).
+    /// The problem for `target` (row-major `splat.width × splat.height`, values in [0, 1]),
+    /// fitting the maps of `model`.
     pub fn new(
-        param: Box<dyn Parameterisation>,
+        model: Box<dyn AnyModel>,
         splat: SplatConfig,
         loss: LossConfig,
         target: Vec<f32>,
@@ -54,7 +55,7 @@ impl ImageProblem {
         let anneal_mse = MsMse::new(loss.msmse_levels).with_reduction(loss.msmse_reduction);
         let objective = Objective::new(loss, &t)?;
         Ok(ImageProblem {
-            param,
+            model,
             splat,
             objective,
             target,
@@ -68,7 +69,7 @@ impl ImageProblem {
     /// seed) for `target`.
     pub fn from_config(cfg: &InversionConfig, target: Vec<f32>) -> Result<Self> {
         let p = ImageProblem::new(
-            cfg.model.parameterisation.build(),
+            cfg.model.build()?,
             cfg.splat_config(),
             cfg.loss.clone(),
             target,
@@ -112,9 +113,9 @@ impl ImageProblem {
             .map_or(0.0, |(_, t)| iter as f64 / t as f64)
     }
 
-    /// The parameterisation θ is decoded with.
-    pub fn parameterisation(&self) -> &dyn Parameterisation {
-        self.param.as_ref()
+    /// The model θ is decoded with.
+    pub fn model(&self) -> &dyn AnyModel {
+        self.model.as_ref()
     }
 
     /// The renderer's configuration at the start of the run.
@@ -143,19 +144,17 @@ impl ImageProblem {
     }
 
     fn render_at(&self, theta: &[f64], stream: u64, frac: f64) -> Result<Vec<f32>> {
-        let maps = self.param.decode(theta)?;
-        let splat = self.splat_at(frac);
-        Ok(splat::forward::<f32>(&splat, &maps, mix_seed(self.seed, stream))?.0)
+        self.model
+            .render(theta, &self.splat_at(frac), mix_seed(self.seed, stream))
     }
 
     /// The objective's terms at θ on random stream `stream`, without a gradient (for loss
     /// landscapes and evaluation), with the renderer the run ends with.
     pub fn loss_breakdown(&self, theta: &[f64], stream: u64) -> Result<LossBreakdown> {
-        let maps = self.param.decode(theta)?;
         let img = self.render_at(theta, stream, 1.0)?;
         let pred = Tensor::from_vec(img, (self.splat.height, self.splat.width), &Device::Cpu)
             .map_err(tensor_err)?;
-        Ok(self.objective.evaluate(&pred, &maps)?.breakdown)
+        self.model.breakdown(theta, &pred, &self.objective)
     }
 }
 
@@ -165,27 +164,12 @@ fn tensor_err(e: candle_core::Error) -> Error {
 
 impl Differentiable for ImageProblem {
     fn evaluate(&self, theta: &[f64], iter: u64) -> Result<Evaluation> {
-        let maps = self.param.decode(theta)?;
-        let var =
-            Var::from_tensor(&maps_to_tensor(&maps, DType::F32, &Device::Cpu).map_err(tensor_err)?)
-                .map_err(tensor_err)?;
-        let op = SplatOp::new(
+        let (b, grad) = self.model.evaluate(
+            theta,
             self.splat_at(self.progress(iter)).into_owned(),
             mix_seed(self.seed, iter),
-        );
-        let pred = var.as_tensor().apply_op1(op).map_err(tensor_err)?;
-        let ev = self.objective.evaluate(&pred, &maps)?;
-        let grads = ev.image_total.backward().map_err(tensor_err)?;
-        let mut gmaps: Vec<Affine2> = match grads.get(var.as_tensor()) {
-            Some(g) => maps_from_tensor(g).map_err(tensor_err)?,
-            None => vec![Affine2::new(0.0, 0.0, 0.0, 0.0, 0.0, 0.0); maps.len()],
-        };
-        for (g, r) in gmaps.iter_mut().zip(&ev.map_grad) {
-            g.m += r.m;
-            g.b += r.b;
-        }
-        let grad = self.param.backward(theta, &gmaps)?;
-        let b = ev.breakdown;
+            &self.objective,
+        )?;
         let terms = [b.msmse, b.dssim, b.lpips, b.moments, b.regulariser]
             .iter()
             .zip(TERMS)
@@ -199,7 +183,7 @@ impl Differentiable for ImageProblem {
     }
 
     fn project(&self, theta: &mut [f64]) {
-        self.param.project(theta);
+        self.model.project(theta);
     }
 }
 

@@ -103,12 +103,12 @@ pub fn run_inversion(
         None
     };
     // A resumed run takes θ from its checkpoint; the start (an EM fit, say) is not redone.
+    let problem = ImageProblem::from_config(cfg, target)?;
     let theta0 = if resume_from.is_some() {
         Vec::new()
     } else {
-        initial_theta(cfg, cfg.model.parameterisation.build().as_ref(), &target)?
+        initial_theta(cfg, problem.model(), problem.target())?
     };
-    let problem = ImageProblem::from_config(cfg, target)?;
     let lpips_note = problem.lpips_skip_reason().map(str::to_owned);
     let stats = registry::stats(cfg.strategy.name())?;
     let columns: Vec<&str> = TERMS.iter().chain(stats).copied().collect();
@@ -130,7 +130,7 @@ pub fn run_inversion(
         .get_param()
         .cloned()
         .ok_or_else(|| Error::Numerical("the run ended without parameters".into()))?;
-    let maps = problem.parameterisation().decode(&theta)?;
+    let maps = problem.model().affine_maps(&theta)?;
     Ok(InversionOutcome {
         theta,
         maps,

@@ -1,0 +1,317 @@
+//! What an image inversion fits: a flat θ ↔ maps of one type that the fused splat op renders
+//! and differentiates.
+//!
+//! A model is an [`ImageModel`]: its map type (any [`DiffMap2`] with an [`AffinePart`] for
+//! the regulariser), how θ decodes into maps, the chain rule back to θ, a projection, and how
+//! a start given as affine maps (a random code, an EM fit, a code file) becomes θ. The
+//! [`ImageProblem`](super::ImageProblem) holds a model behind [`AnyModel`], type-erased once
+//! per evaluation (never per point: the splat is monomorphised for `M::Map`), so a new map
+//! type reaches every strategy, checkpoint, resume and `ifslab run` by one entry in
+//! [`MODELS`]. Models are named in a config by `[model] family = "…"`.
+//!
+//! Two families ship: `affine` (general affine maps under a [`Parameterisation`], the paper's
+//! model) and `similitude` (direct similitudes `x ↦ s·R(φ)·x + t`, θ = (s, φ, tₓ, t_y) per
+//! map — the worked example of adding a map type: [`SimilitudeModel`] is ~60 lines).
+
+use candle_core::{DType, Device, Tensor, Var};
+use ifslab::loss::{LossBreakdown, Objective};
+use ifslab::model::diff_map::{AffinePart, Similitude2, flat_params};
+use ifslab::model::{Affine2, Parameterisation};
+use ifslab::render::splat::{self, SplatConfig, SplatOp};
+
+use crate::error::{Error, Result};
+use crate::problems::image::config::ModelConfig;
+
+/// θ ↔ maps of type [`ImageModel::Map`]: what the image problem fits.
+pub trait ImageModel: Send + Sync + 'static {
+    /// The maps θ describes.
+    type Map: AffinePart + Send + Sync + 'static;
+
+    /// The maps θ describes (an error when θ has the wrong length or a bad value).
+    fn decode(&self, theta: &[f64]) -> Result<Vec<Self::Map>>;
+
+    /// The chain rule: the gradient with respect to θ from the gradient with respect to the
+    /// maps' parameters (flat, map after map, in [`DiffMap2::write_params`] order).
+    fn backward(&self, theta: &[f64], grad_params: &[f64]) -> Result<Vec<f64>>;
+
+    /// Brings θ back into the model's domain after a step (default: nothing to do).
+    fn project(&self, _theta: &mut [f64]) {}
+
+    /// θ for a start given as affine maps (the closest maps of the model).
+    fn encode(&self, start: &[Affine2]) -> Result<Vec<f64>>;
+
+    /// The maps as affine maps, for the evaluation renderer and the code file; an error for
+    /// maps that are not affine.
+    fn to_affine(&self, maps: &[Self::Map]) -> Result<Vec<Affine2>>;
+}
+
+/// Any [`ImageModel`], its map type erased: what the image problem holds. Implemented for
+/// every model; each call is monomorphised for the model's map type inside.
+pub trait AnyModel: Send + Sync {
+    /// The loss terms at θ and the gradient of the total with respect to θ: θ → maps → splat
+    /// op (σ and seed of this iteration) → `objective`, reverse through candle's autograd and
+    /// the model's chain rule.
+    fn evaluate(
+        &self,
+        theta: &[f64],
+        splat: SplatConfig,
+        seed: u64,
+        objective: &Objective,
+    ) -> Result<(LossBreakdown, Vec<f64>)>;
+
+    /// The splat render of θ (no gradient).
+    fn render(&self, theta: &[f64], splat: &SplatConfig, seed: u64) -> Result<Vec<f32>>;
+
+    /// The loss terms of a render `pred` of θ (the regulariser sees θ's maps).
+    fn breakdown(
+        &self,
+        theta: &[f64],
+        pred: &Tensor,
+        objective: &Objective,
+    ) -> Result<LossBreakdown>;
+
+    /// See [`ImageModel::project`].
+    fn project(&self, theta: &mut [f64]);
+
+    /// See [`ImageModel::encode`].
+    fn encode(&self, start: &[Affine2]) -> Result<Vec<f64>>;
+
+    /// θ's maps as affine maps (see [`ImageModel::to_affine`]).
+    fn affine_maps(&self, theta: &[f64]) -> Result<Vec<Affine2>>;
+
+    /// The number of maps θ describes.
+    fn n_maps(&self, theta: &[f64]) -> Result<usize>;
+}
+
+fn tensor_err(e: candle_core::Error) -> Error {
+    Error::Core(ifslab::Error::from(e))
+}
+
+impl<M: ImageModel> AnyModel for M {
+    fn evaluate(
+        &self,
+        theta: &[f64],
+        splat: SplatConfig,
+        seed: u64,
+        objective: &Objective,
+    ) -> Result<(LossBreakdown, Vec<f64>)> {
+        let maps = self.decode(theta)?;
+        let var = Var::from_tensor(
+            &Tensor::new(flat_params(&maps), &Device::Cpu)
+                .and_then(|t| t.to_dtype(DType::F32))
+                .map_err(tensor_err)?,
+        )
+        .map_err(tensor_err)?;
+        let op = SplatOp::with_maps(splat, seed, maps.clone());
+        let pred = var.as_tensor().apply_op1(op).map_err(tensor_err)?;
+        let ev = objective.evaluate_params(&pred, &maps)?;
+        let grads = ev.image_total.backward().map_err(tensor_err)?;
+        let mut g: Vec<f64> = match grads.get(var.as_tensor()) {
+            Some(g) => g
+                .to_dtype(DType::F64)
+                .and_then(|g| g.to_vec1())
+                .map_err(tensor_err)?,
+            None => vec![0.0; ev.param_grad.len()],
+        };
+        for (a, r) in g.iter_mut().zip(&ev.param_grad) {
+            *a += r;
+        }
+        Ok((ev.breakdown, self.backward(theta, &g)?))
+    }
+
+    fn render(&self, theta: &[f64], splat: &SplatConfig, seed: u64) -> Result<Vec<f32>> {
+        let maps = self.decode(theta)?;
+        Ok(splat::forward::<f32>(splat, &maps, seed)?.0)
+    }
+
+    fn breakdown(
+        &self,
+        theta: &[f64],
+        pred: &Tensor,
+        objective: &Objective,
+    ) -> Result<LossBreakdown> {
+        let maps = self.decode(theta)?;
+        Ok(objective.evaluate_params(pred, &maps)?.breakdown)
+    }
+
+    fn project(&self, theta: &mut [f64]) {
+        ImageModel::project(self, theta)
+    }
+
+    fn encode(&self, start: &[Affine2]) -> Result<Vec<f64>> {
+        ImageModel::encode(self, start)
+    }
+
+    fn affine_maps(&self, theta: &[f64]) -> Result<Vec<Affine2>> {
+        self.to_affine(&self.decode(theta)?)
+    }
+
+    fn n_maps(&self, theta: &[f64]) -> Result<usize> {
+        Ok(self.decode(theta)?.len())
+    }
+}
+
+/// General affine maps under a [`Parameterisation`] (`family = "affine"`, the default).
+pub struct AffineModel(pub Box<dyn Parameterisation>);
+
+impl ImageModel for AffineModel {
+    type Map = Affine2;
+
+    fn decode(&self, theta: &[f64]) -> Result<Vec<Affine2>> {
+        Ok(self.0.decode(theta)?)
+    }
+
+    fn backward(&self, theta: &[f64], grad_params: &[f64]) -> Result<Vec<f64>> {
+        let g: Vec<Affine2> = grad_params
+            .chunks_exact(6)
+            .map(Affine2::from_coefficients)
+            .collect();
+        Ok(self.0.backward(theta, &g)?)
+    }
+
+    fn project(&self, theta: &mut [f64]) {
+        self.0.project(theta)
+    }
+
+    fn encode(&self, start: &[Affine2]) -> Result<Vec<f64>> {
+        Ok(self.0.encode(start)?)
+    }
+
+    fn to_affine(&self, maps: &[Affine2]) -> Result<Vec<Affine2>> {
+        Ok(maps.to_vec())
+    }
+}
+
+/// Direct similitudes `x ↦ s·R(φ)·x + t` (`family = "similitude"`): θ = (s, φ, tₓ, t_y) per
+/// map, `s` kept in [[`SimilitudeModel::MIN_SCALE`], [`SimilitudeModel::MAX_SCALE`]] so every
+/// map contracts. Reflections are not in the family (a start map with det < 0 becomes the
+/// nearest rotation-scale map).
+pub struct SimilitudeModel;
+
+impl SimilitudeModel {
+    /// The smallest scale θ may hold.
+    pub const MIN_SCALE: f64 = 1e-3;
+    /// The largest scale θ may hold.
+    pub const MAX_SCALE: f64 = 0.999;
+}
+
+impl ImageModel for SimilitudeModel {
+    type Map = Similitude2;
+
+    fn decode(&self, theta: &[f64]) -> Result<Vec<Similitude2>> {
+        if theta.is_empty() || !theta.len().is_multiple_of(4) {
+            return Err(Error::InvalidInput(format!(
+                "a similitude code needs 4 parameters per map, θ has {}",
+                theta.len()
+            )));
+        }
+        if let Some(i) = theta.iter().position(|v| !v.is_finite()) {
+            return Err(Error::Numerical(format!(
+                "map {}, parameter {} is {}",
+                i / 4,
+                i % 4,
+                theta[i]
+            )));
+        }
+        Ok(theta
+            .chunks_exact(4)
+            .map(|p| Similitude2::new(p[0], p[1], false, [p[2], p[3]]))
+            .collect())
+    }
+
+    fn backward(&self, _theta: &[f64], grad_params: &[f64]) -> Result<Vec<f64>> {
+        Ok(grad_params.to_vec())
+    }
+
+    fn project(&self, theta: &mut [f64]) {
+        for p in theta.chunks_exact_mut(4) {
+            p[0] = p[0].clamp(Self::MIN_SCALE, Self::MAX_SCALE);
+        }
+    }
+
+    /// The rotation-scale part of `M` (its conformal part `(M + cof M)/2`), offset kept.
+    fn encode(&self, start: &[Affine2]) -> Result<Vec<f64>> {
+        let mut theta = Vec::with_capacity(4 * start.len());
+        for m in start {
+            let (a, b) = (
+                0.5 * (m.m[(0, 0)] + m.m[(1, 1)]),
+                0.5 * (m.m[(1, 0)] - m.m[(0, 1)]),
+            );
+            theta.extend_from_slice(&[a.hypot(b), b.atan2(a), m.b[0], m.b[1]]);
+        }
+        ImageModel::project(self, &mut theta);
+        Ok(theta)
+    }
+
+    fn to_affine(&self, maps: &[Similitude2]) -> Result<Vec<Affine2>> {
+        Ok(maps.iter().map(Similitude2::to_affine).collect())
+    }
+}
+
+/// One model family a config can name.
+pub struct ModelEntry {
+    /// Its name in `[model] family`.
+    pub name: &'static str,
+    /// One line for the docs.
+    pub about: &'static str,
+    /// The model for a (validated) model config.
+    pub build: fn(&ModelConfig) -> Box<dyn AnyModel>,
+}
+
+/// Every model family, by name. Adding a map type to image inversion is one entry here (and
+/// its [`ImageModel`]).
+pub const MODELS: &[ModelEntry] = &[
+    ModelEntry {
+        name: "affine",
+        about: "general affine maps under `parameterisation` (the paper's model)",
+        build: |c| Box::new(AffineModel(c.parameterisation.build())),
+    },
+    ModelEntry {
+        name: "similitude",
+        about: "direct similitudes s·R(φ)·x + t, θ = (s, φ, tx, ty) per map",
+        build: |_| Box::new(SimilitudeModel),
+    },
+];
+
+/// The entry named `name`, or an error listing the known ones.
+pub fn find_model(name: &str) -> Result<&'static ModelEntry> {
+    MODELS.iter().find(|m| m.name == name).ok_or_else(|| {
+        Error::InvalidInput(format!(
+            "unknown model family `{name}` (known: {})",
+            MODELS.iter().map(|m| m.name).collect::<Vec<_>>().join(", ")
+        ))
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ifslab::model::Map2;
+
+    #[test]
+    fn similitude_encoding_keeps_similitudes_and_projects_the_rest() {
+        let s = Similitude2::new(0.5, 0.7, false, [0.2, -0.1]);
+        let th = ImageModel::encode(&SimilitudeModel, &[s.to_affine()]).unwrap();
+        let back = SimilitudeModel.decode(&th).unwrap();
+        let (p, q) = (back[0].apply([0.3, 0.9]), s.apply([0.3, 0.9]));
+        assert!((p[0] - q[0]).abs() < 1e-12 && (p[1] - q[1]).abs() < 1e-12);
+        // An expanding map is brought back to a contraction.
+        let th = ImageModel::encode(
+            &SimilitudeModel,
+            &[Affine2::new(2.0, 0.0, 0.0, 2.0, 0.0, 0.0)],
+        )
+        .unwrap();
+        assert_eq!(th[0], SimilitudeModel::MAX_SCALE);
+    }
+
+    #[test]
+    fn bad_theta_is_refused_with_its_place() {
+        let e = SimilitudeModel.decode(&[0.5, 0.0, 0.0]).unwrap_err();
+        assert!(e.to_string().contains("4 parameters per map"), "{e}");
+        let e = SimilitudeModel
+            .decode(&[0.5, 0.0, 0.0, 0.0, 0.5, f64::NAN, 0.0, 0.0])
+            .unwrap_err();
+        assert!(e.to_string().contains("map 1, parameter 1"), "{e}");
+        assert!(find_model("nope").is_err());
+    }
+}
