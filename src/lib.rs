@@ -7,9 +7,11 @@
 //! - [`model`]: maps (affine, similitudes), parameterisations θ ↔ maps, code files, the
 //!   classic and random codes;
 //! - [`chaos`]: deterministic, parallel chaos-game point generators;
+//! - [`image`]: the one image type (grey, RGB or RGBA planes of `f32`; ↔ candle tensors,
+//!   PNG files);
 //! - [`render`]: the fast evaluation renderer (tens of millions of points at any zoom);
-//! - [`loss`]: image losses (multi-scale MSE, D-SSIM, moments, LPIPS) and the map
-//!   regulariser, each with its gradient, composable as candle tensors;
+//! - [`loss`]: image losses (multi-scale MSE, D-SSIM, moments, LPIPS) on grey or colour
+//!   images and the map regulariser, each with its gradient, composable as candle tensors;
 //! - [`metrics`]: IoU, box-counting dimension and friends.
 //!
 //! Strategies live in the `ifslab-strategies` crate and the `ifslab` command in
@@ -18,6 +20,7 @@
 
 pub mod chaos;
 pub mod error;
+pub mod image;
 pub mod io;
 pub mod loss;
 pub mod metrics;

@@ -109,11 +109,12 @@ fn apply_loss_refuses_mismatches_clearly() {
         .unwrap_err()
         .to_string();
     assert!(msg.contains("to_dtype"), "{msg}");
-    let d = Tensor::zeros((2, 4, 5), DType::F32, &dev).unwrap();
+    // (C, H, W) images are channels; a batch of them is not an image.
+    let d = Tensor::zeros((2, 2, 4, 5), DType::F32, &dev).unwrap();
     let msg = apply_loss(MsMse::default(), &d, &d)
         .unwrap_err()
         .to_string();
-    assert!(msg.contains("(H, W)"), "{msg}");
+    assert!(msg.contains("(C, H, W)"), "{msg}");
 }
 
 #[test]
@@ -267,4 +268,129 @@ fn a_second_backward_pass_recomputes_the_same_gradient() {
     let first = grad_of(&total, &x);
     let second = grad_of(&total, &x);
     assert_eq!(first, second);
+}
+
+// ------------------------------------------------------------------ multi-channel images
+
+/// A `(3, H, W)` image is scored channel by channel: value = mean of the per-channel values,
+/// gradient = per-channel gradient / 3 — checked against the plain function on each plane.
+fn check_rgb<L: ImageLoss + Clone + 'static>(loss: L) {
+    let (w, h) = (21, 17);
+    let dev = Device::Cpu;
+    let (pred, target): (Vec<f64>, Vec<f64>) = (
+        (0..3).flat_map(|c| image(w, h, 3 + 11 * c)).collect(),
+        (0..3).flat_map(|c| image(w, h, 5 + 13 * c)).collect(),
+    );
+    let x = Var::from_vec(pred.clone(), (3, h, w), &dev).unwrap();
+    let t = Tensor::from_vec(target.clone(), (3, h, w), &dev).unwrap();
+    let out = apply_loss(loss.clone(), x.as_tensor(), &t).unwrap();
+    let n = w * h;
+    let (mut value, mut grad) = (0.0, Vec::new());
+    for c in 0..3 {
+        let (v, g) = loss
+            .value_and_grad(&pred[c * n..(c + 1) * n], &target[c * n..(c + 1) * n], w, h)
+            .unwrap();
+        value += v / 3.0;
+        grad.extend(g.iter().map(|g| g / 3.0));
+    }
+    let got = out.to_scalar::<f64>().unwrap();
+    assert!(
+        (got - value).abs() <= 1e-12 * value.abs().max(1e-12),
+        "{}: {got} vs {value}",
+        loss.name()
+    );
+    let g = grad_of(&out, &x);
+    for (i, (a, b)) in g.iter().zip(&grad).enumerate() {
+        assert!(
+            (a - b).abs() <= 1e-12 * b.abs().max(1e-9),
+            "{}: ∂/∂x[{i}] {a} vs {b}",
+            loss.name()
+        );
+    }
+    // And the channels really are separate: central differences in each plane.
+    let f = |v: &[f64]| {
+        let p = Tensor::from_vec(v.to_vec(), (3, h, w), &dev).unwrap();
+        apply_loss(loss.clone(), &p, &t)
+            .unwrap()
+            .to_scalar::<f64>()
+            .unwrap()
+    };
+    for &i in &[5, n + 40, 2 * n + 200] {
+        let e = 1e-6;
+        let mut v = pred.clone();
+        v[i] += e;
+        let up = f(&v);
+        v[i] -= 2.0 * e;
+        let fd = (up - f(&v)) / (2.0 * e);
+        assert!(
+            (fd - g[i]).abs() <= 1e-6 + 1e-4 * fd.abs(),
+            "{}: pixel {i}: fd {fd} vs {}",
+            loss.name(),
+            g[i]
+        );
+    }
+}
+
+#[test]
+fn losses_on_rgb_images_are_the_mean_over_channels() {
+    check_rgb(MsMse::new(3));
+    check_rgb(DSsim::default());
+    check_rgb(Moments::default());
+}
+
+#[test]
+fn downsampling_an_rgb_image_downsamples_each_plane() {
+    let (w, h) = (9, 7);
+    let dev = Device::Cpu;
+    let v: Vec<f64> = (0..3).flat_map(|c| image(w, h, 2 + c)).collect();
+    let x = Var::from_vec(v.clone(), (3, h, w), &dev).unwrap();
+    let d = x.as_tensor().apply_op1(Downsample2x).unwrap();
+    assert_eq!(d.dims(), &[3, 4, 5]);
+    let got = d.flatten_all().unwrap().to_vec1::<f64>().unwrap();
+    let want: Vec<f64> = v
+        .chunks_exact(w * h)
+        .flat_map(|p| downsample2x(p, w, h).0)
+        .collect();
+    assert_eq!(got, want);
+    // Its reverse pass is the adjoint: ⟨D x, y⟩ = ⟨x, Dᵀ y⟩ for y = ones.
+    let g = grad_of(&d.sum_all().unwrap(), &x);
+    let lhs: f64 = got.iter().sum();
+    let rhs: f64 = g.iter().zip(&v).map(|(a, b)| a * b).sum();
+    assert!((lhs - rhs).abs() < 1e-12, "{lhs} vs {rhs}");
+}
+
+#[test]
+fn objective_on_an_rgb_target_with_grey_channels_equals_the_grey_objective() {
+    let (w, h) = (24, 20);
+    let dev = Device::Cpu;
+    let (p, t) = (image(w, h, 1), image(w, h, 9));
+    let grey = |v: &[f64]| Tensor::from_vec(v.to_vec(), (h, w), &dev).unwrap();
+    let rgb = |v: &[f64]| Tensor::from_vec(v.repeat(3), (3, h, w), &dev).unwrap();
+    let cfg = LossConfig {
+        moments_weight: 0.5,
+        ..no_lpips()
+    };
+    let a = Objective::new(cfg.clone(), &grey(&t)).unwrap();
+    let b = Objective::new(cfg, &rgb(&t)).unwrap();
+    let (va, _) = a.image_loss(&grey(&p)).unwrap();
+    let (vb, _) = b.image_loss(&rgb(&p)).unwrap();
+    let (va, vb) = (
+        va.to_scalar::<f64>().unwrap(),
+        vb.to_scalar::<f64>().unwrap(),
+    );
+    assert!((va - vb).abs() < 1e-12 * va.abs(), "{va} vs {vb}");
+    // A 3-channel prediction against a grey target is a shape error, not a broadcast.
+    let e = a.image_loss(&rgb(&p)).unwrap_err();
+    assert!(e.to_string().contains("differ in shape"), "{e}");
+    // LPIPS needs grey or RGB.
+    let four = Tensor::from_vec(t.repeat(4), (4, h, w), &dev).unwrap();
+    let e = Objective::new(
+        LossConfig {
+            lpips_weight: 1.0,
+            ..LossConfig::default()
+        },
+        &four,
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("4 channels"), "{e}");
 }

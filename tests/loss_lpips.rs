@@ -398,3 +398,72 @@ fn too_small_images_are_refused() {
     let msg = net.distance(&x, &x).unwrap_err().to_string();
     assert!(msg.contains("at least 31×31"), "{msg}");
 }
+
+/// RGB images go through AlexNet as RGB: a colour image whose three channels are one grey
+/// image is at the grey image's distance, different colours of the same luminance layout are
+/// not at distance zero, and the gradient with respect to every channel matches finite
+/// differences (f64, ε = 1e-7, along a noise direction).
+#[test]
+fn rgb_images_are_compared_in_colour() {
+    let net = net();
+    let (w, h) = (40, 36);
+    let dev = Device::Cpu;
+    let to64 = |v: Vec<f32>| v.into_iter().map(f64::from).collect::<Vec<f64>>();
+    let (a, b) = (
+        to64(procedural("waves", w, h)),
+        to64(procedural("disc", w, h)),
+    );
+    let grey = |v: &[f64]| Tensor::from_vec(v.to_vec(), (h, w), &dev).unwrap();
+    let rgb = |v: Vec<f64>| Tensor::from_vec(v, (3, h, w), &dev).unwrap();
+    let d_grey = scalar(&net.distance(&grey(&a), &grey(&b)).unwrap());
+    let d_rgb = scalar(&net.distance(&rgb(a.repeat(3)), &rgb(b.repeat(3))).unwrap());
+    assert!((d_grey - d_rgb).abs() < 1e-12, "{d_grey} vs {d_rgb}");
+    // The same picture in red and in blue.
+    let zeros = vec![0.0; w * h];
+    let red = rgb([a.clone(), zeros.clone(), zeros.clone()].concat());
+    let blue = rgb([zeros.clone(), zeros.clone(), a.clone()].concat());
+    assert!(scalar(&net.distance(&red, &blue).unwrap()) > 0.01);
+    // Gradient through each channel.
+    let x0 = [a.clone(), b.clone(), a.iter().map(|v| 1.0 - v).collect()].concat();
+    let t = rgb([b.clone(), a.clone(), b.clone()].concat());
+    let dir: Vec<f64> = to64(procedural("noise", w, h))
+        .repeat(3)
+        .iter()
+        .enumerate()
+        .map(|(i, n)| (n - 0.5) * [1.0, -0.5, 0.25][i / (w * h)])
+        .collect();
+    let x = Var::from_vec(x0.clone(), (3, h, w), &dev).unwrap();
+    let g: Vec<f64> = net
+        .distance(x.as_tensor(), &t)
+        .unwrap()
+        .backward()
+        .unwrap()
+        .get(x.as_tensor())
+        .unwrap()
+        .flatten_all()
+        .unwrap()
+        .to_vec1()
+        .unwrap();
+    let at = |eps: f64| {
+        let y: Vec<f64> = x0.iter().zip(&dir).map(|(a, b)| a + eps * b).collect();
+        scalar(&net.distance(&rgb(y), &t).unwrap())
+    };
+    let eps = 1e-7;
+    let fd = (at(eps) - at(-eps)) / (2.0 * eps);
+    let analytic: f64 = g.iter().zip(&dir).map(|(a, b)| a * b).sum();
+    assert!(
+        (analytic - fd).abs() <= 1e-5 * fd.abs() + 1e-9,
+        "autograd {analytic} vs fd {fd}"
+    );
+    // Each channel gets its own gradient.
+    let n = w * h;
+    let norms: Vec<f64> = g
+        .chunks_exact(n)
+        .map(|c| c.iter().map(|v| v * v).sum::<f64>())
+        .collect();
+    assert!(norms.iter().all(|&v| v > 0.0), "{norms:?}");
+    // Two channels are neither grey nor RGB.
+    let two = Tensor::from_vec([a.clone(), b.clone()].concat(), (2, h, w), &dev).unwrap();
+    let e = net.distance(&two, &two).unwrap_err();
+    assert!(e.to_string().contains("2 channels"), "{e}");
+}

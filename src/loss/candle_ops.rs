@@ -33,8 +33,8 @@ use candle_core::backend::BackendStorage;
 use candle_core::{CpuStorage, CustomOp1, CustomOp2, DType, Layout, Shape, Tensor};
 
 use crate::error::{Error, Result};
-use crate::loss::ImageLoss;
 use crate::loss::msmse::{downsample2x, downsample2x_adjoint};
+use crate::loss::{ImageLoss, Real};
 
 /// A gradient kept from the forward pass.
 enum Cached {
@@ -74,6 +74,54 @@ pub fn image_hw(dims: &[usize]) -> std::result::Result<(usize, usize), String> {
     }
 }
 
+/// `(channels, height, width)` of an image tensor: `(H, W)` is one channel, `(C, H, W)` holds
+/// `C` planes one after the other (channel-major, as candle stores images); leading dimensions
+/// of size 1 are allowed. A loss on a `C`-channel image is the mean of its per-channel values
+/// (see [`LossOp`]).
+pub fn image_chw(dims: &[usize]) -> std::result::Result<(usize, usize, usize), String> {
+    match dims {
+        [h, w] => Ok((1, *h, *w)),
+        [lead @ .., c, h, w] if *c > 0 && lead.iter().all(|&d| d == 1) => Ok((*c, *h, *w)),
+        _ => Err(format!(
+            "expected an image tensor of shape (H, W) or (C, H, W), C ≥ 1 (leading dimensions of size 1 \
+             allowed), got {dims:?}"
+        )),
+    }
+}
+
+/// The loss of a `c`-plane image pair: per plane, then the mean over planes (the gradient
+/// scaled by `1/c`). One plane is the loss itself, bit for bit (the grey fast path).
+fn planes<L: ImageLoss, T: Real>(
+    loss: &L,
+    (a, b): (&[T], &[T]),
+    (c, h, w): (usize, usize, usize),
+    grad: bool,
+) -> Result<(T, Option<Vec<T>>)> {
+    let n = h * w;
+    if c == 1 || n == 0 {
+        return Ok(if grad {
+            let (v, g) = loss.value_and_grad(a, b, w, h)?;
+            (v, Some(g))
+        } else {
+            (loss.value(a, b, w, h)?, None)
+        });
+    }
+    let inv = crate::loss::cst::<T>(1.0 / c as f64);
+    let mut total = T::zero();
+    let mut g_all = grad.then(|| Vec::with_capacity(c * n));
+    for (pa, pb) in a.chunks_exact(n).zip(b.chunks_exact(n)) {
+        match g_all.as_mut() {
+            Some(g_all) => {
+                let (v, g) = loss.value_and_grad(pa, pb, w, h)?;
+                total = total + v;
+                g_all.extend(g.into_iter().map(|x| x * inv));
+            }
+            None => total = total + loss.value(pa, pb, w, h)?,
+        }
+    }
+    Ok((total * inv, g_all))
+}
+
 /// The contiguous data of one operand.
 fn slice<'a, T: candle_core::WithDType>(
     s: &'a [T],
@@ -102,7 +150,7 @@ impl<L: ImageLoss + 'static> CustomOp2 for LossOp<L> {
         s2: &CpuStorage,
         l2: &Layout,
     ) -> candle_core::Result<(CpuStorage, Shape)> {
-        let (h, w) = image_hw(l1.dims()).map_err(candle_core::Error::Msg)?;
+        let chw = image_chw(l1.dims()).map_err(candle_core::Error::Msg)?;
         if l1.dims() != l2.dims() {
             candle_core::bail!(
                 "{}: prediction {:?} and target {:?} differ in shape",
@@ -113,25 +161,19 @@ impl<L: ImageLoss + 'static> CustomOp2 for LossOp<L> {
         }
         let out = match (s1, s2) {
             (CpuStorage::F32(a), CpuStorage::F32(b)) => {
-                let (a, b) = (slice(a, l1, "pred")?, slice(b, l2, "target")?);
-                let v = if self.keep_grad {
-                    let (v, g) = self.loss.value_and_grad(a, b, w, h).map_err(to_candle)?;
+                let ab = (slice(a, l1, "pred")?, slice(b, l2, "target")?);
+                let (v, g) = planes(&self.loss, ab, chw, self.keep_grad).map_err(to_candle)?;
+                if let Some(g) = g {
                     self.store(Cached::F32(g));
-                    v
-                } else {
-                    self.loss.value(a, b, w, h).map_err(to_candle)?
-                };
+                }
                 CpuStorage::F32(vec![v])
             }
             (CpuStorage::F64(a), CpuStorage::F64(b)) => {
-                let (a, b) = (slice(a, l1, "pred")?, slice(b, l2, "target")?);
-                let v = if self.keep_grad {
-                    let (v, g) = self.loss.value_and_grad(a, b, w, h).map_err(to_candle)?;
+                let ab = (slice(a, l1, "pred")?, slice(b, l2, "target")?);
+                let (v, g) = planes(&self.loss, ab, chw, self.keep_grad).map_err(to_candle)?;
+                if let Some(g) = g {
                     self.store(Cached::F64(g));
-                    v
-                } else {
-                    self.loss.value(a, b, w, h).map_err(to_candle)?
-                };
+                }
                 CpuStorage::F64(vec![v])
             }
             _ => candle_core::bail!(
@@ -151,7 +193,7 @@ impl<L: ImageLoss + 'static> CustomOp2 for LossOp<L> {
         _res: &Tensor,
         grad_res: &Tensor,
     ) -> candle_core::Result<(Option<Tensor>, Option<Tensor>)> {
-        let (h, w) = image_hw(arg1.dims()).map_err(candle_core::Error::Msg)?;
+        let chw = image_chw(arg1.dims()).map_err(candle_core::Error::Msg)?;
         // The kept gradient is handed over, not copied; a second backward pass through the
         // same graph (or an op built with keep_grad = false) recomputes it.
         let cached = self.cache.lock().unwrap_or_else(|e| e.into_inner()).take();
@@ -160,11 +202,13 @@ impl<L: ImageLoss + 'static> CustomOp2 for LossOp<L> {
             None => match arg1.dtype() {
                 DType::F32 => {
                     let (a, b) = (flat::<f32>(arg1)?, flat::<f32>(arg2)?);
-                    Cached::F32(self.loss.value_and_grad(&a, &b, w, h).map_err(to_candle)?.1)
+                    let (_, g) = planes(&self.loss, (&a, &b), chw, true).map_err(to_candle)?;
+                    Cached::F32(g.unwrap_or_default())
                 }
                 DType::F64 => {
                     let (a, b) = (flat::<f64>(arg1)?, flat::<f64>(arg2)?);
-                    Cached::F64(self.loss.value_and_grad(&a, &b, w, h).map_err(to_candle)?.1)
+                    let (_, g) = planes(&self.loss, (&a, &b), chw, true).map_err(to_candle)?;
+                    Cached::F64(g.unwrap_or_default())
                 }
                 d => candle_core::bail!("{}: unsupported dtype {d:?}", self.name()),
             },
@@ -184,15 +228,16 @@ fn flat<T: candle_core::WithDType>(t: &Tensor) -> candle_core::Result<Vec<T>> {
 /// `loss(pred, target)` as a scalar tensor of `pred`'s dtype, differentiable with respect
 /// to `pred` (the target is a constant).
 ///
-/// Both tensors must be `(H, W)` images (leading dimensions of size 1 allowed) of the same
-/// shape and dtype (`f32` or `f64`) on the CPU. When `pred` does not take part in autograd
+/// Both tensors must be `(H, W)` or `(C, H, W)` images (leading dimensions of size 1
+/// allowed) of the same shape and dtype (`f32` or `f64`) on the CPU; a `C`-channel loss is
+/// the mean of the per-channel losses. When `pred` does not take part in autograd
 /// the gradient is not computed at all.
 pub fn apply_loss<L: ImageLoss + 'static>(
     loss: L,
     pred: &Tensor,
     target: &Tensor,
 ) -> Result<Tensor> {
-    image_hw(pred.dims()).map_err(Error::Shape)?;
+    image_chw(pred.dims()).map_err(Error::Shape)?;
     if pred.dims() != target.dims() {
         return Err(Error::Shape(format!(
             "{}: prediction {:?} and target {:?} differ in shape",
@@ -220,9 +265,15 @@ pub fn apply_loss<L: ImageLoss + 'static>(
 
 /// 2×2 average pooling of an image tensor as a differentiable [`CustomOp1`]: an `(H, W)`
 /// image becomes `(⌈H/2⌉, ⌈W/2⌉)` exactly as in the MS-MSE pyramid
-/// ([`crate::loss::msmse::downsample2x`]); leading dimensions of size 1 are kept.
+/// ([`crate::loss::msmse::downsample2x`]), a `(C, H, W)` image plane by plane; leading
+/// dimensions of size 1 are kept.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Downsample2x;
+
+/// `f` applied to each `n`-value plane of `v`, the results one after the other.
+fn per_plane<T: Copy>(v: &[T], n: usize, f: impl Fn(&[T]) -> Vec<T>) -> Vec<T> {
+    v.chunks_exact(n).flat_map(f).collect()
+}
 
 fn halved_shape(dims: &[usize]) -> Shape {
     let mut d = dims.to_vec();
@@ -238,10 +289,14 @@ impl CustomOp1 for Downsample2x {
     }
 
     fn cpu_fwd(&self, s: &CpuStorage, l: &Layout) -> candle_core::Result<(CpuStorage, Shape)> {
-        let (h, w) = image_hw(l.dims()).map_err(candle_core::Error::Msg)?;
+        let (_, h, w) = image_chw(l.dims()).map_err(candle_core::Error::Msg)?;
         let out = match s {
-            CpuStorage::F32(v) => CpuStorage::F32(downsample2x(slice(v, l, "image")?, w, h).0),
-            CpuStorage::F64(v) => CpuStorage::F64(downsample2x(slice(v, l, "image")?, w, h).0),
+            CpuStorage::F32(v) => CpuStorage::F32(per_plane(slice(v, l, "image")?, h * w, |p| {
+                downsample2x(p, w, h).0
+            })),
+            CpuStorage::F64(v) => CpuStorage::F64(per_plane(slice(v, l, "image")?, h * w, |p| {
+                downsample2x(p, w, h).0
+            })),
             _ => candle_core::bail!("downsample2x: needs f32 or f64, got {:?}", s.dtype()),
         };
         Ok((out, halved_shape(l.dims())))
@@ -253,15 +308,20 @@ impl CustomOp1 for Downsample2x {
         _res: &Tensor,
         grad_res: &Tensor,
     ) -> candle_core::Result<Option<Tensor>> {
-        let (h, w) = image_hw(arg.dims()).map_err(candle_core::Error::Msg)?;
+        let (_, h, w) = image_chw(arg.dims()).map_err(candle_core::Error::Msg)?;
+        let half = h.div_ceil(2) * w.div_ceil(2);
         let g = match grad_res.dtype() {
             DType::F32 => Tensor::from_vec(
-                downsample2x_adjoint(&flat::<f32>(grad_res)?, w, h),
+                per_plane(&flat::<f32>(grad_res)?, half, |p| {
+                    downsample2x_adjoint(p, w, h)
+                }),
                 arg.shape(),
                 arg.device(),
             )?,
             DType::F64 => Tensor::from_vec(
-                downsample2x_adjoint(&flat::<f64>(grad_res)?, w, h),
+                per_plane(&flat::<f64>(grad_res)?, half, |p| {
+                    downsample2x_adjoint(p, w, h)
+                }),
                 arg.shape(),
                 arg.device(),
             )?,

@@ -50,7 +50,7 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::loss::Real;
-use crate::loss::candle_ops::image_hw;
+use crate::loss::candle_ops::image_chw;
 
 /// Environment variable that overrides where the LPIPS weights are read from.
 pub const LPIPS_WEIGHTS_ENV: &str = "IFSLAB_LPIPS_WEIGHTS";
@@ -613,10 +613,11 @@ impl Lpips {
         &self.path
     }
 
-    /// The five ReLU taps of AlexNet, unit-normalised over channels, for an `(H, W)` image
-    /// tensor in [0, 1] (computed in `f64` for `f64` input, else `f32`; differentiable).
+    /// The five ReLU taps of AlexNet, unit-normalised over channels, for an `(H, W)` grey
+    /// image (replicated to three channels) or a `(3, H, W)` RGB image tensor in [0, 1]
+    /// (computed in `f64` for `f64` input, else `f32`; differentiable).
     fn taps(&self, image: &Tensor) -> Result<Vec<Tensor>> {
-        let (h, w) = image_hw(image.dims()).map_err(Error::Shape)?;
+        let (c, h, w) = rgb_or_grey(image.dims())?;
         if h < LPIPS_MIN_SIDE || w < LPIPS_MIN_SIDE {
             return Err(Error::Shape(format!(
                 "LPIPS needs images of at least {LPIPS_MIN_SIDE}×{LPIPS_MIN_SIDE} pixels, got {w}×{h}"
@@ -628,7 +629,7 @@ impl Lpips {
         };
         let x = image
             .to_dtype(dt)?
-            .reshape((1, 1, h, w))?
+            .reshape((1, c, h, w))?
             .affine(2.0, -1.0)?
             .broadcast_as((1, 3, h, w))?
             .broadcast_sub(&self.shift.to_dtype(dt)?)?
@@ -653,7 +654,7 @@ impl Lpips {
 
     /// The normalised taps of a fixed image (a target), detached from any autograd graph.
     pub fn features(&self, image: &Tensor) -> Result<LpipsFeatures> {
-        let (height, width) = image_hw(image.dims()).map_err(Error::Shape)?;
+        let (_, height, width) = rgb_or_grey(image.dims())?;
         let taps = self
             .taps(&image.detach())?
             .into_iter()
@@ -697,7 +698,7 @@ impl Lpips {
     /// LPIPS between `pred` and precomputed target features, as a scalar tensor (`f64` for
     /// an `f64` prediction, else `f32`) differentiable with respect to `pred`.
     pub fn distance_to(&self, pred: &Tensor, target: &LpipsFeatures) -> Result<Tensor> {
-        let (h, w) = image_hw(pred.dims()).map_err(Error::Shape)?;
+        let (_, h, w) = rgb_or_grey(pred.dims())?;
         if (h, w) != target.image_size() {
             return Err(Error::Shape(format!(
                 "LPIPS: prediction is {w}×{h} but the target features come from a {}×{} image",
@@ -741,6 +742,17 @@ impl Lpips {
             .distance(&p, &t)?
             .to_dtype(DType::F64)?
             .to_scalar::<f64>()?)
+    }
+}
+
+/// `(channels, height, width)` of an image LPIPS takes: grey `(H, W)` (or `(1, H, W)`) or
+/// RGB `(3, H, W)`.
+fn rgb_or_grey(dims: &[usize]) -> Result<(usize, usize, usize)> {
+    match image_chw(dims).map_err(Error::Shape)? {
+        (c @ (1 | 3), h, w) => Ok((c, h, w)),
+        (c, ..) => Err(Error::Shape(format!(
+            "LPIPS takes grey (H, W) or RGB (3, H, W) images, got {c} channels ({dims:?})"
+        ))),
     }
 }
 

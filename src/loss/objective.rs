@@ -27,7 +27,7 @@ use candle_core::{DType, Tensor};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
-use crate::loss::candle_ops::{Downsample2x, apply_loss, image_hw};
+use crate::loss::candle_ops::{Downsample2x, apply_loss, image_chw};
 use crate::loss::lpips::{FETCH_HINT, Lpips, LpipsFeatures, default_lpips_weights_path};
 use crate::loss::{DSsim, Moments, MsMse, MsMseReduction, Regulariser};
 use crate::model::affine::Affine2;
@@ -210,11 +210,18 @@ fn downsample(t: &Tensor, times: usize) -> Result<Tensor> {
 }
 
 impl Objective {
-    /// Validates the config, checks the target (an `(H, W)` tensor in [0, 1], `f32` or
-    /// `f64`), and loads LPIPS when its weight is positive.
+    /// Validates the config, checks the target (an `(H, W)` grey or `(C, H, W)` image tensor
+    /// in [0, 1], `f32` or `f64`; LPIPS takes grey or RGB), and loads LPIPS when its weight
+    /// is positive. Every term of a `C`-channel image is the mean over its channels, except
+    /// LPIPS, which sees RGB as RGB.
     pub fn new(config: LossConfig, target: &Tensor) -> Result<Self> {
         config.validate()?;
-        image_hw(target.dims()).map_err(Error::Shape)?;
+        let (c, ..) = image_chw(target.dims()).map_err(Error::Shape)?;
+        if config.lpips_weight > 0.0 && !matches!(c, 1 | 3) {
+            return Err(Error::Shape(format!(
+                "LPIPS takes grey or RGB images; the target has {c} channels (set lpips_weight = 0)"
+            )));
+        }
         if !matches!(target.dtype(), DType::F32 | DType::F64) {
             return Err(Error::Shape(format!(
                 "the target must be an f32 or f64 tensor, got {:?}",

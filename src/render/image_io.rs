@@ -6,6 +6,7 @@ use std::path::Path;
 use image::{ImageBuffer, ImageFormat, Luma};
 
 use crate::error::{Error, Result};
+use crate::image::Image;
 use crate::io::write_atomic;
 use crate::render::raster::Raster;
 
@@ -97,42 +98,8 @@ impl Raster {
 }
 
 /// A grey image with values in [0, 1].
-#[derive(Clone, Debug, PartialEq)]
-pub struct GreyImage {
-    /// Width in pixels.
-    pub width: u32,
-    /// Height in pixels.
-    pub height: u32,
-    /// Row-major values.
-    pub values: Vec<f32>,
-}
-
-/// Loads any image `image` reads as grey in [0, 1] (alpha composited onto white).
-pub fn load_grey(path: &Path) -> Result<GreyImage> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let img = image::load_from_memory(&bytes).map_err(|e| Error::Image {
-        path: path.to_owned(),
-        message: format!("not a readable image ({e})"),
-    })?;
-    let rgba = img.to_rgba32f();
-    let (width, height) = rgba.dimensions();
-    if width == 0 || height == 0 {
-        return Err(Error::Image {
-            path: path.to_owned(),
-            message: "image has no pixels".into(),
-        });
-    }
-    let values = rgba
-        .pixels()
-        .map(|p| {
-            let [r, g, b, a] = p.0;
-            let y = 0.2126 * r + 0.7152 * g + 0.0722 * b;
-            (y * a + (1.0 - a)).clamp(0.0, 1.0)
-        })
-        .collect();
-    Ok(GreyImage {
-        width,
-        height,
-        values,
-    })
+/// Loads any image `image` reads as grey in [0, 1] (alpha composited onto white): a
+/// one-channel [`Image`].
+pub fn load_grey(path: &Path) -> Result<Image> {
+    Image::load(path, false)
 }

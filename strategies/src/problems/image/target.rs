@@ -4,8 +4,9 @@
 
 use std::path::Path;
 
+use ifslab::image::Image;
 use ifslab::render::FIT_FILL;
-use ifslab::render::image_io::{GreyImage, load_grey};
+use ifslab::render::image_io::load_grey;
 use image::{ImageBuffer, Luma, imageops};
 use serde::{Deserialize, Serialize};
 
@@ -43,8 +44,16 @@ pub fn load_target(path: &Path, size: usize, polarity: Polarity) -> Result<Vec<f
     })
 }
 
-/// Frames a grey image into a `size × size` target (values in [0, 1], shape bright).
-pub fn frame_target(img: &GreyImage, size: usize, polarity: Polarity) -> Result<Vec<f32>> {
+/// Frames an image (colour images by their luma) into a `size × size` grey target (values
+/// in [0, 1], shape bright).
+pub fn frame_target(img: &Image, size: usize, polarity: Polarity) -> Result<Vec<f32>> {
+    let grey;
+    let img = if img.channels == 1 {
+        img
+    } else {
+        grey = img.to_grey();
+        &grey
+    };
     if size < 8 {
         return Err(Error::param(
             "size",
@@ -155,8 +164,9 @@ pub fn load_framed_target(path: &Path, size: usize) -> Result<Vec<f32>> {
 mod tests {
     use super::*;
 
-    fn image(w: u32, h: u32, f: impl Fn(u32, u32) -> f32) -> GreyImage {
-        GreyImage {
+    fn image(w: u32, h: u32, f: impl Fn(u32, u32) -> f32) -> Image {
+        Image {
+            channels: 1,
             width: w,
             height: h,
             values: (0..h)

@@ -1,0 +1,239 @@
+//! The one image type of the stack: `channels` planes of `height × width` `f32` values in
+//! [0, 1], plane after plane (channel-major, the layout of a candle `(C, H, W)` tensor, so an
+//! image goes to the losses and comes back without reordering).
+//!
+//! One channel is grey (renders of IFS attractors, framed targets: the fast path every loss
+//! and renderer keeps); three are RGB and four RGBA (flames). Files are read and written
+//! through the `image` crate; PNG writes are atomic.
+
+use std::io::Cursor;
+use std::path::Path;
+
+use candle_core::{DType, Device, Tensor};
+use image::{ImageBuffer, ImageFormat, Luma, Rgb, Rgba};
+
+use crate::error::{Error, Result};
+use crate::io::write_atomic;
+
+/// A planar `f32` image (see the module docs).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Planes: 1 grey, 3 RGB, 4 RGBA.
+    pub channels: u32,
+    /// `channels × height × width` values, plane after plane, each plane row-major.
+    pub values: Vec<f32>,
+}
+
+/// Rec. 709 luma of linear-free sRGB values, as the grey loaders use.
+fn luma(r: f32, g: f32, b: f32) -> f32 {
+    0.2126 * r + 0.7152 * g + 0.0722 * b
+}
+
+impl Image {
+    /// An image from its planes; an error when the value count does not match.
+    pub fn new(width: u32, height: u32, channels: u32, values: Vec<f32>) -> Result<Self> {
+        if width == 0 || height == 0 || channels == 0 {
+            return Err(Error::Empty(format!(
+                "a {width}×{height} image with {channels} channels has no pixels"
+            )));
+        }
+        let n = channels as usize * height as usize * width as usize;
+        if values.len() != n {
+            return Err(Error::Shape(format!(
+                "{} values for a {width}×{height} image with {channels} channels ({n} expected)",
+                values.len()
+            )));
+        }
+        Ok(Image {
+            width,
+            height,
+            channels,
+            values,
+        })
+    }
+
+    /// A grey image from row-major values.
+    pub fn grey(width: u32, height: u32, values: Vec<f32>) -> Result<Self> {
+        Image::new(width, height, 1, values)
+    }
+
+    /// Pixels per plane.
+    pub fn pixels(&self) -> usize {
+        self.width as usize * self.height as usize
+    }
+
+    /// Plane `c` (row-major).
+    pub fn plane(&self, c: usize) -> &[f32] {
+        let n = self.pixels();
+        &self.values[c * n..(c + 1) * n]
+    }
+
+    /// The image in grey: itself when it has one channel, else the Rec. 709 luma of its
+    /// RGB planes, composited onto white by its alpha plane when it has one.
+    pub fn to_grey(&self) -> Image {
+        if self.channels == 1 {
+            return self.clone();
+        }
+        let n = self.pixels();
+        let values = (0..n)
+            .map(|i| {
+                let ch = |c: usize| self.values[c.min(self.channels as usize - 1) * n + i];
+                let y = luma(ch(0), ch(1), ch(2));
+                if self.channels == 4 {
+                    let a = ch(3);
+                    (y * a + (1.0 - a)).clamp(0.0, 1.0)
+                } else {
+                    y.clamp(0.0, 1.0)
+                }
+            })
+            .collect();
+        Image {
+            width: self.width,
+            height: self.height,
+            channels: 1,
+            values,
+        }
+    }
+
+    /// The image as a tensor: `(H, W)` for grey, `(C, H, W)` otherwise — the shapes the
+    /// losses take.
+    pub fn to_tensor(&self, dtype: DType, device: &Device) -> Result<Tensor> {
+        let (h, w) = (self.height as usize, self.width as usize);
+        let t = if self.channels == 1 {
+            Tensor::from_slice(&self.values, (h, w), device)?
+        } else {
+            Tensor::from_slice(&self.values, (self.channels as usize, h, w), device)?
+        };
+        Ok(t.to_dtype(dtype)?)
+    }
+
+    /// An image from an `(H, W)` or `(C, H, W)` tensor (leading dimensions of size 1
+    /// allowed), in any float dtype.
+    pub fn from_tensor(t: &Tensor) -> Result<Self> {
+        let (c, h, w) = crate::loss::candle_ops::image_chw(t.dims()).map_err(Error::Shape)?;
+        let values = t.to_dtype(DType::F32)?.flatten_all()?.to_vec1::<f32>()?;
+        Image::new(w as u32, h as u32, c as u32, values)
+    }
+
+    /// Reads any file the `image` crate reads, as grey (luma, alpha composited onto white)
+    /// or, with `rgb`, as three planes (alpha composited onto white).
+    pub fn load(path: &Path, rgb: bool) -> Result<Self> {
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let img = image::load_from_memory(&bytes).map_err(|e| Error::Image {
+            path: path.to_owned(),
+            message: format!("not a readable image ({e})"),
+        })?;
+        let rgba = img.to_rgba32f();
+        let (width, height) = rgba.dimensions();
+        if width == 0 || height == 0 {
+            return Err(Error::Image {
+                path: path.to_owned(),
+                message: "image has no pixels".into(),
+            });
+        }
+        let over_white = |v: f32, a: f32| (v * a + (1.0 - a)).clamp(0.0, 1.0);
+        let values: Vec<f32> = if rgb {
+            (0..3)
+                .flat_map(|c| rgba.pixels().map(move |p| over_white(p.0[c], p.0[3])))
+                .collect()
+        } else {
+            rgba.pixels()
+                .map(|p| {
+                    let [r, g, b, a] = p.0;
+                    over_white(luma(r, g, b), a)
+                })
+                .collect()
+        };
+        Image::new(width, height, if rgb { 3 } else { 1 }, values)
+    }
+
+    /// PNG bytes: grey, RGB or RGBA, 8 bits per channel; values are clamped to [0, 1].
+    pub fn encode_png(&self) -> Result<Vec<u8>> {
+        let n = self.pixels();
+        let q = |v: f32| (v.clamp(0.0, 1.0) * 255.0).round() as u8;
+        let interleaved: Vec<u8> = (0..n)
+            .flat_map(|i| (0..self.channels as usize).map(move |c| (i, c)))
+            .map(|(i, c)| q(self.values[c * n + i]))
+            .collect();
+        let (w, h) = (self.width, self.height);
+        let mut out = Cursor::new(Vec::new());
+        let res = match self.channels {
+            1 => ImageBuffer::<Luma<u8>, _>::from_raw(w, h, interleaved)
+                .map(|b| b.write_to(&mut out, ImageFormat::Png)),
+            3 => ImageBuffer::<Rgb<u8>, _>::from_raw(w, h, interleaved)
+                .map(|b| b.write_to(&mut out, ImageFormat::Png)),
+            4 => ImageBuffer::<Rgba<u8>, _>::from_raw(w, h, interleaved)
+                .map(|b| b.write_to(&mut out, ImageFormat::Png)),
+            c => {
+                return Err(Error::Shape(format!(
+                    "PNG holds 1, 3 or 4 channels, the image has {c}"
+                )));
+            }
+        };
+        match res {
+            Some(Ok(())) => Ok(out.into_inner()),
+            Some(Err(e)) => Err(Error::Image {
+                path: "<memory>".into(),
+                message: e.to_string(),
+            }),
+            None => Err(Error::Shape("image buffer size mismatch".into())),
+        }
+    }
+
+    /// Writes the image as a PNG, atomically.
+    pub fn save_png(&self, path: &Path) -> Result<()> {
+        let bytes = self.encode_png().map_err(|e| match e {
+            Error::Image { message, .. } => Error::Image {
+                path: path.to_owned(),
+                message,
+            },
+            other => other,
+        })?;
+        write_atomic(path, &bytes)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rgb() -> Image {
+        let (w, h) = (5, 3);
+        let values = (0..3 * w * h).map(|i| (i % 7) as f32 / 6.0).collect();
+        Image::new(w as u32, h as u32, 3, values).unwrap()
+    }
+
+    #[test]
+    fn png_and_tensor_round_trips_keep_planes_in_place() {
+        let img = rgb();
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("x.png");
+        img.save_png(&p).unwrap();
+        let back = Image::load(&p, true).unwrap();
+        assert_eq!((back.width, back.height, back.channels), (5, 3, 3));
+        for (a, b) in img.values.iter().zip(&back.values) {
+            assert!((a - b).abs() <= 0.5 / 255.0 + 1e-6, "{a} vs {b}");
+        }
+        let t = img.to_tensor(DType::F64, &Device::Cpu).unwrap();
+        assert_eq!(t.dims(), &[3, 3, 5]);
+        assert_eq!(Image::from_tensor(&t).unwrap(), img);
+        // Grey from file equals grey from the RGB planes (both luma).
+        let g = Image::load(&p, false).unwrap();
+        for (a, b) in g.values.iter().zip(&back.to_grey().values) {
+            assert!((a - b).abs() < 1e-5, "{a} vs {b}");
+        }
+    }
+
+    #[test]
+    fn bad_shapes_are_refused() {
+        assert!(Image::new(2, 2, 3, vec![0.0; 11]).is_err());
+        assert!(Image::new(0, 2, 1, vec![]).is_err());
+        let two = Image::new(1, 1, 2, vec![0.0, 1.0]).unwrap();
+        let e = two.encode_png().unwrap_err();
+        assert!(e.to_string().contains("1, 3 or 4 channels"), "{e}");
+    }
+}
