@@ -47,14 +47,8 @@ impl Default for AdamConfig {
 impl Params for AdamConfig {
     const KIND: &'static str = "adam";
     const STATS: &'static [&'static str] = &[];
+    /// Checks every field; the error names the one to change.
     fn validate(&self) -> Result<()> {
-        AdamConfig::validate(self)
-    }
-}
-
-impl AdamConfig {
-    /// Checks the hyper-parameters; the error names the one to change.
-    pub fn validate(&self) -> Result<()> {
         if !(self.lr.is_finite() && self.lr > 0.0) {
             return Err(Error::param("lr", format!("must be > 0, got {}", self.lr)));
         }

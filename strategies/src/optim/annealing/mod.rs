@@ -88,14 +88,8 @@ impl Default for AnnealingConfig {
 impl Params for AnnealingConfig {
     const KIND: &'static str = "annealing";
     const STATS: &'static [&'static str] = &["mse", "accepted"];
+    /// Checks every field; the error names the one to change.
     fn validate(&self) -> Result<()> {
-        AnnealingConfig::validate(self)
-    }
-}
-
-impl AnnealingConfig {
-    /// Checks the hyper-parameters; the error names the one to change.
-    pub fn validate(&self) -> Result<()> {
         if !(self.noise.is_finite() && self.noise >= 0.0) {
             return Err(Error::param(
                 "noise",

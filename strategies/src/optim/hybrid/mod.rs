@@ -50,8 +50,20 @@ impl Default for HybridConfig {
 impl Params for HybridConfig {
     const KIND: &'static str = "hybrid";
     const STATS: &'static [&'static str] = &["anneal_accepted", "anneal_mse"];
+    /// Checks every field; the error names the one to change.
     fn validate(&self) -> Result<()> {
-        HybridConfig::validate(self)
+        self.adam.validate()?;
+        self.annealing.validate()?;
+        if self.anneal_every == 0 {
+            return Err(Error::param("anneal_every", "must be at least 1"));
+        }
+        if !(0.0..=1.0).contains(&self.anneal_fraction) {
+            return Err(Error::param(
+                "anneal_fraction",
+                format!("must lie in [0, 1], got {}", self.anneal_fraction),
+            ));
+        }
+        Ok(())
     }
 }
 
@@ -74,22 +86,6 @@ impl HybridConfig {
             },
             ..paper
         }
-    }
-
-    /// Checks every field; the error names the one to change.
-    pub fn validate(&self) -> Result<()> {
-        self.adam.validate()?;
-        self.annealing.validate()?;
-        if self.anneal_every == 0 {
-            return Err(Error::param("anneal_every", "must be at least 1"));
-        }
-        if !(0.0..=1.0).contains(&self.anneal_fraction) {
-            return Err(Error::param(
-                "anneal_fraction",
-                format!("must lie in [0, 1], got {}", self.anneal_fraction),
-            ));
-        }
-        Ok(())
     }
 }
 

@@ -40,14 +40,8 @@ impl Default for NoisyConfig {
 impl Params for NoisyConfig {
     const KIND: &'static str = "noisy";
     const STATS: &'static [&'static str] = &["noise_std"];
-    fn validate(&self) -> Result<()> {
-        NoisyConfig::validate(self)
-    }
-}
-
-impl NoisyConfig {
     /// Checks every field; the error names the one to change.
-    pub fn validate(&self) -> Result<()> {
+    fn validate(&self) -> Result<()> {
         self.adam.validate()?;
         if !(self.eta.is_finite() && self.eta >= 0.0) {
             return Err(Error::param(
