@@ -5,9 +5,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use ifslab::model::flame::{
-    Flame, RandomFlameConfig, VariationKind, estimate_bounds, flame_from_affine, random_flame,
-    read_flames, write_flames,
+    Flame, RandomFlameConfig, VariationKind, estimate_bounds, flame_from_affine, read_flames,
+    write_flames,
 };
+use ifslab::render::flame::draft::usable_random_flame;
 use ifslab::render::flame::{Depth, FlameRenderConfig, render_flame};
 
 use crate::bars::{self as progress, Bar};
@@ -259,32 +260,6 @@ fn parse_variation(s: &str) -> anyhow::Result<VariationKind> {
         .with_context(|| format!("unknown variation `{s}` (see `ifslab flame info --variations`)"))
 }
 
-/// flam3-genome's test of a draft: a quick 100² render of the framed genome at quality 1,
-/// whose mean grey must reach 20/255 with ≥ 1 % black and ≤ 5 % white pixels.
-fn looks_usable(flame: &Flame) -> anyhow::Result<bool> {
-    let mut t = flame.clone();
-    t.scale *= 100.0 / t.size[0] as f64;
-    t.size = [100, 100];
-    t.quality = 1.0;
-    t.supersample = 1;
-    t.estimator_radius = 0.0;
-    let img = render_flame(&t, &FlameRenderConfig::default(), None)?;
-    let n = img.pixels.len() as f64;
-    let rgb: Vec<[u8; 3]> = img
-        .pixels
-        .iter()
-        .map(|p| [p[0] as u8, p[1] as u8, p[2] as u8])
-        .collect();
-    let avg = rgb
-        .iter()
-        .map(|c| c.iter().map(|&v| v as f64).sum::<f64>())
-        .sum::<f64>()
-        / (3.0 * n);
-    let black = rgb.iter().filter(|c| **c == [0, 0, 0]).count() as f64 / n;
-    let white = rgb.iter().filter(|c| **c == [255, 255, 255]).count() as f64 / n;
-    Ok(avg >= 20.0 && black >= 0.01 && white <= 0.05)
-}
-
 fn random(a: RandomArgs) -> anyhow::Result<()> {
     let variations = a
         .variations
@@ -307,24 +282,14 @@ fn random(a: RandomArgs) -> anyhow::Result<()> {
     let mut flames = Vec::with_capacity(a.count);
     for k in 0..a.count as u64 {
         let seed = a.seed.wrapping_add(k);
-        let mut chosen = None;
-        for t in 0..a.tries as u64 {
-            // Each draft has its own seed, derived from the genome's.
-            let f = random_flame(ifslab::chaos::mix_seed(seed, t), &cfg)?;
-            let ok = looks_usable(&f)?;
-            chosen = Some(f);
-            if ok {
-                break;
-            }
-            if t + 1 == a.tries as u64 {
-                eprintln!(
-                    "warning: genome {k}: no draft passed the brightness test in {} tries; \
-                     keeping the last",
-                    a.tries
-                );
-            }
+        let (mut f, passed) = usable_random_flame(seed, &cfg, a.tries as u64)?;
+        if !passed {
+            eprintln!(
+                "warning: genome {k}: no draft passed the brightness test in {} tries; \
+                 keeping the last",
+                a.tries
+            );
         }
-        let mut f = chosen.expect("at least one try");
         f.name = Some(format!("random-{seed}"));
         flames.push(f);
     }

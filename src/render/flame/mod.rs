@@ -39,6 +39,7 @@
 
 mod chaos;
 mod density;
+pub mod draft;
 pub mod filter;
 mod tonemap;
 
