@@ -91,6 +91,11 @@ images() {
   derived f03 6003 m06 's/filter_shape="gaussian"/filter_shape="box"/; s/filter="0.5"/filter="1.2"/'
   derived f04 6004 m06 's/filter_shape="gaussian"/filter_shape="lanczos2"/; s/filter="0.5"/filter="1.2"/'
   derived f05 6005 m06 's/estimator_radius="9"/estimator_radius="0"/; s/brightness="4"/brightness="8"/; s/gamma="4"/gamma="2.5"/' 
+  # Filters with negative lobes at the sampled points.
+  derived f06 6006 m06 's/filter_shape="gaussian"/filter_shape="mitchell"/; s/filter="0.5"/filter="1.2"/'
+  derived f07 6007 m06 's/filter_shape="gaussian"/filter_shape="lanczos3"/; s/filter="0.5"/filter="1.2"/'
+  derived f08 6008 m06 's/filter_shape="gaussian"/filter_shape="hanning"/; s/filter="0.5"/filter="1.2"/'
+  derived f09 6009 m06 's/filter_shape="gaussian"/filter_shape="hamming"/; s/filter="0.5"/filter="1.2"/'
   rm -rf "$tmp"
   echo "wrote $(ls "$out"/*.flame | wc -l) flames and their flam3 renders to $out"
 }

@@ -245,6 +245,28 @@ impl Histogram {
         }
     }
 
+    /// Asks for a cell's cache line when its point is buffered, so that by the time the
+    /// batch is added (up to [`HIT_BATCH`] points later) the line is in the core's cache
+    /// instead of a random read of the histogram each (7–10 % of a 1-thread render's CPU
+    /// time on the bench flames).
+    #[inline(always)]
+    fn prefetch(&self, cell: usize) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+            // SAFETY: a prefetch is a hint; it reads nothing and cannot fault, and `cell`
+            // is inside the histogram anyway.
+            unsafe {
+                _mm_prefetch::<_MM_HINT_T0>(self.rgba.as_ptr().wrapping_add(cell).cast());
+                if let Some(c) = &self.count {
+                    _mm_prefetch::<_MM_HINT_T0>(c.as_ptr().wrapping_add(cell).cast());
+                }
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = cell;
+    }
+
     #[inline(always)]
     fn add(&mut self, cell: usize, c: &Colors, color: f64, vis: f64) {
         let ci = color * 256.0;
@@ -325,8 +347,9 @@ pub(crate) struct Game<'a> {
 impl Game<'_> {
     /// One trajectory of `n` plotted samples (after `fuse` unplotted steps), as flam3's
     /// `flam3_iterate` followed by the bucket accumulation. Points are buffered and added
-    /// to the histogram in batches, as flam3 does: the adds of a batch are independent, so
-    /// their cache misses overlap instead of stalling the iteration.
+    /// to the histogram in batches, as flam3 does, each cell prefetched as its point is
+    /// buffered: the adds of a batch then find their lines in cache instead of stalling
+    /// the iteration.
     pub(crate) fn run<R: RngCore>(
         &self,
         rng: &mut R,
@@ -385,6 +408,7 @@ impl Game<'_> {
                 && vis != 0.0
                 && let Some(cell) = self.camera.locate(plot)
             {
+                hist.prefetch(cell);
                 buf.push(Hit {
                     cell: cell as u32,
                     color: plot_color,

@@ -6,16 +6,10 @@ use std::f64::consts::PI;
 
 use rand::RngCore;
 
-use super::{Pre, c_int, c_int32, rand01};
+use super::{Pre, c_int, c_int32, four_uniforms, from_polar, rand01};
 use crate::model::flame::real::Real;
 
 type P<T> = (T, T);
-
-/// flam3's pseudo-Gaussian: the sum of four uniforms, centred.
-#[inline(always)]
-fn four_uniforms<R: RngCore + ?Sized>(rng: &mut R) -> f64 {
-    rand01(rng) + rand01(rng) + rand01(rng) + rand01(rng) - 2.0
-}
 
 #[inline(never)]
 pub(super) fn noise<T: Real, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R) -> P<T> {
@@ -38,8 +32,7 @@ pub(super) fn julian<T: Real, R: RngCore + ?Sized>(
     let t = c_int(d[0].v() * rand01(rng));
     let a = (f.atan_yx() + 2.0 * PI * t) / p[0];
     let r = w * f.sumsq.pow(d[1]);
-    let (s, c) = a.sin_cos();
-    (r * c, r * s)
+    from_polar(r, a)
 }
 
 #[inline(never)]
@@ -56,25 +49,22 @@ pub(super) fn juliascope<T: Real, R: RngCore + ?Sized>(
     } else {
         (-f.atan_yx() + 2.0 * PI * t as f64) / p[0]
     };
-    let (s, c) = a.sin_cos();
     let r = w * f.sumsq.pow(d[1]);
-    (r * c, r * s)
+    from_polar(r, a)
 }
 
 #[inline(never)]
 pub(super) fn blur<T: Real, R: RngCore + ?Sized>(w: T, rng: &mut R) -> P<T> {
     let a = rand01(rng) * 2.0 * PI;
-    let (s, c) = a.sin_cos();
     let r = w * rand01(rng);
-    (r * c, r * s)
+    from_polar(r, T::cst(a))
 }
 
 #[inline(never)]
 pub(super) fn gaussian_blur<T: Real, R: RngCore + ?Sized>(w: T, rng: &mut R) -> P<T> {
     let a = rand01(rng) * 2.0 * PI;
-    let (s, c) = a.sin_cos();
     let r = w * four_uniforms(rng);
-    (r * c, r * s)
+    from_polar(r, T::cst(a))
 }
 
 /// radial_blur: `d = [sin(angle·π/2), cos(angle·π/2)]` (spin and zoom amounts).
@@ -99,6 +89,5 @@ pub(super) fn pie<T: Real, R: RngCore + ?Sized>(w: T, p: &[T; 8], rng: &mut R) -
     let sl = c_int(rand01(rng) * slices.v() + 0.5);
     let a = rotation + (thickness * rand01(rng) + sl) * (2.0 * PI) / slices;
     let r = w * rand01(rng);
-    let (s, c) = a.sin_cos();
-    (r * c, r * s)
+    from_polar(r, a)
 }

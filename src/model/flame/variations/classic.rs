@@ -7,7 +7,7 @@ use std::f64::consts::{FRAC_1_PI, PI};
 
 use rand::RngCore;
 
-use super::{EPS, Pre, c_int, rand_bit};
+use super::{EPS, Pre, c_int, from_polar, rand_bit};
 use crate::model::flame::real::Real;
 
 type P<T> = (T, T);
@@ -111,8 +111,7 @@ pub(super) fn julia<T: Real, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R)
         a = a + PI;
     }
     let r = w * f.sqrt.sqrt();
-    let (sa, ca) = a.sin_cos();
-    (r * ca, r * sa)
+    from_polar(r, a)
 }
 
 #[inline(never)]
@@ -159,8 +158,7 @@ pub(super) fn popcorn<T: Real>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
 pub(super) fn exponential<T: Real>(w: T, f: &Pre<T>) -> P<T> {
     let dx = w * (f.tx - 1.0).exp();
     let dy = f.ty * PI;
-    let (sdy, cdy) = dy.sin_cos();
-    (dx * cdy, dx * sdy)
+    from_polar(dx, dy)
 }
 
 #[inline(never)]
@@ -201,8 +199,7 @@ pub(super) fn fan<T: Real>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
     } else {
         a = a + dx2;
     }
-    let (sa, ca) = a.sin_cos();
-    (r * ca, r * sa)
+    from_polar(r, a)
 }
 
 #[inline(never)]

@@ -259,15 +259,28 @@ pub(crate) fn eval<T: Real, R: RngCore + ?Sized>(
     }
 }
 
+/// `(r·cos a, r·sin a)`: the point at radius `r` and angle `a`, the last step of the
+/// variations that work in polar coordinates.
+#[inline(always)]
+pub(crate) fn from_polar<T: Real>(r: T, a: T) -> (T, T) {
+    let (s, c) = a.sin_cos();
+    (r * c, r * s)
+}
+
+/// flam3's pseudo-Gaussian: the sum of four uniforms, centred.
+#[inline(always)]
+pub(crate) fn four_uniforms<R: RngCore + ?Sized>(rng: &mut R) -> f64 {
+    rand01(rng) + rand01(rng) + rand01(rng) + rand01(rng) - 2.0
+}
+
 /// pre_blur (flam3 `var67_pre_blur`): a pseudo-Gaussian step of the point before the
 /// variations run, `w·(u₁+u₂+u₃+u₄−2)` along a uniform angle.
 #[inline(always)]
 pub(crate) fn pre_blur<R: RngCore + ?Sized>(w: f64, tx: &mut f64, ty: &mut f64, rng: &mut R) {
-    let g = w * (rand01(rng) + rand01(rng) + rand01(rng) + rand01(rng) - 2.0);
-    let a = rand01(rng) * 2.0 * std::f64::consts::PI;
-    let (s, c) = a.sin_cos();
-    *tx += g * c;
-    *ty += g * s;
+    let g = w * four_uniforms(rng);
+    let (dx, dy) = from_polar(g, rand01(rng) * 2.0 * std::f64::consts::PI);
+    *tx += dx;
+    *ty += dy;
 }
 
 #[cfg(test)]

@@ -6,7 +6,7 @@ use std::f64::consts::{FRAC_1_PI, FRAC_2_PI, FRAC_PI_2, FRAC_PI_4, PI};
 
 use rand::RngCore;
 
-use super::{EPS, Pre, c_int, c_int32, rand01, rint};
+use super::{EPS, Pre, c_int, c_int32, from_polar, rand01, rint};
 use crate::model::flame::real::Real;
 
 type P<T> = (T, T);
@@ -190,8 +190,7 @@ pub(super) fn cpow<T: Real, R: RngCore + ?Sized>(
     let k = (power.v() * rand01(rng)).floor();
     let ang = vc * a + vd * lnr + va * k;
     let m = w * (vc * lnr - vd * a).exp();
-    let (s, c) = ang.sin_cos();
-    (m * c, m * s)
+    from_polar(m, ang)
 }
 
 #[inline(never)]
@@ -259,8 +258,7 @@ pub(super) fn escher<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let vd = seb * 0.5;
     let m = w * (vc * lnr - vd * a).exp();
     let n = vc * a + vd * lnr;
-    let (sn, cn) = n.sin_cos();
-    (m * cn, m * sn)
+    from_polar(m, n)
 }
 
 #[inline(never)]
@@ -421,9 +419,8 @@ pub(super) fn wedge<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let c = ((count * a + PI) * FRAC_1_PI * 0.5).v().floor();
     let comp_fac = T::cst(1.0) - angle * count * FRAC_1_PI * 0.5;
     let a = a * comp_fac + angle * c;
-    let (s, co) = a.sin_cos();
     let r = w * (r + hole);
-    (r * co, r * s)
+    from_polar(r, a)
 }
 
 /// wedge_julia: `p = [angle, count, power, dist]`, `d = [1 − angle·count/(2π), |power|,
@@ -442,8 +439,7 @@ pub(super) fn wedge_julia<T: Real, R: RngCore + ?Sized>(
     let a = (f.atan_yx() + 2.0 * PI * t) / power;
     let c = ((count * a + PI) * FRAC_1_PI * 0.5).v().floor();
     let a = a * d[0] + angle * c;
-    let (s, co) = a.sin_cos();
-    (r * co, r * s)
+    from_polar(r, a)
 }
 
 /// wedge_sph: `p = [angle, count, hole, swirl]`.
@@ -455,9 +451,8 @@ pub(super) fn wedge_sph<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let c = ((count * a + PI) * FRAC_1_PI * 0.5).v().floor();
     let comp_fac = T::cst(1.0) - angle * count * FRAC_1_PI * 0.5;
     let a = a * comp_fac + angle * c;
-    let (s, co) = a.sin_cos();
     let r = w * (r + hole);
-    (r * co, r * s)
+    from_polar(r, a)
 }
 
 #[inline(never)]
