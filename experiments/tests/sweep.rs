@@ -490,20 +490,22 @@ fn a_killed_sweep_resumes_to_the_uninterrupted_result() {
     )
     .unwrap();
     let sweep = tmp.path().join("sweep.toml");
+    // Two seeds, of which only the second is run (`--only`): runs keep their positions in
+    // the whole sweep.
     std::fs::write(
         &sweep,
-        "base = \"base.toml\"\n[set]\nstrategy.kind = \"adam\"\n",
+        "base = \"base.toml\"\n[set]\nstrategy.kind = \"adam\"\n[[axis]]\nkey = \"seed\"\nvalues = [0, 1]\n",
     )
     .unwrap();
     let s = sweep.to_string_lossy().into_owned();
     let p = Plan::load(&sweep).unwrap();
-    let id = &p.runs[0].id;
+    let id = &p.runs[1].id;
     let killed: PathBuf = tmp.path().join("killed");
     let k = killed.to_string_lossy().into_owned();
 
     // Kill the sweep once its run has written a checkpoint (a node failure, say).
     let mut child = Command::new(env!("CARGO_BIN_EXE_ifslab"))
-        .args(["sweep", &s, "-o", &k, "--threads", "2"])
+        .args(["sweep", &s, "-o", &k, "--only", "seed=1", "--threads", "2"])
         .spawn()
         .unwrap();
     let ckpt = partial_dir(&killed, id).join("checkpoint.json");
@@ -515,11 +517,11 @@ fn a_killed_sweep_resumes_to_the_uninterrupted_result() {
     child.wait().unwrap();
     assert!(ckpt.is_file(), "the run wrote no checkpoint");
     assert!(!run_dir(&killed, id).exists(), "killed before it finished");
-    let (ok, msg) = ifslab(&["sweep", &s, "-o", &k, "--dry-run"]);
+    let (ok, msg) = ifslab(&["sweep", &s, "-o", &k, "--only", "seed=1", "--dry-run"]);
     assert!(ok && msg.contains("0 finished, 1 interrupted"), "{msg}");
 
     // Run again on one thread: it resumes from the checkpoint…
-    let (ok, msg) = ifslab(&["sweep", &s, "-o", &k, "--threads", "1"]);
+    let (ok, msg) = ifslab(&["sweep", &s, "-o", &k, "--only", "seed=1", "--threads", "1"]);
     assert!(ok, "{msg}");
     let rec: RunRecord =
         serde_json::from_slice(&std::fs::read(run_dir(&killed, id).join(RECORD_FILE)).unwrap())
@@ -528,16 +530,22 @@ fn a_killed_sweep_resumes_to_the_uninterrupted_result() {
     // …to exactly the result of an uninterrupted run.
     let whole = tmp.path().join("whole");
     let w = whole.to_string_lossy().into_owned();
-    let (ok, msg) = ifslab(&["sweep", &s, "-o", &w]);
+    let (ok, msg) = ifslab(&["sweep", &s, "-o", &w, "--only", "seed=1"]);
     assert!(ok, "{msg}");
     assert_eq!(
         summary(&run_dir(&killed, id)),
         summary(&run_dir(&whole, id))
     );
     // A third call has nothing to do.
-    let (ok, msg) = ifslab(&["sweep", &s, "-o", &w]);
+    let (ok, msg) = ifslab(&["sweep", &s, "-o", &w, "--only", "seed=1"]);
     assert!(
         ok && msg.contains("0 finished now, 1 already done"),
+        "{msg}"
+    );
+    // The resolved config of a run, by name.
+    let (ok, msg) = ifslab(&["sweep", &s, "--show", "1"]);
+    assert!(
+        ok && msg.contains("seed = 1") && msg.contains("kind = \"adam\""),
         "{msg}"
     );
 }
@@ -603,4 +611,61 @@ setup = ["module load rust"]
     let (ok, msg) = ifslab(&["sweep", &s, "-o", &o, "--slurm"]);
     assert!(ok && msg.contains("5 runs in 5 array tasks"), "{msg}");
     let _ = SweepConfig::load(&tmp.path().join("sweep.toml")).unwrap();
+}
+
+#[test]
+fn the_chaotic_splatting_sweep_is_the_protocol_its_results_ran() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let repro = root.join("paper_repro/chaotic_splatting");
+    let mut p = Plan::load(&repro.join("sweep.toml")).unwrap();
+    assert_eq!(p.runs.len(), 87);
+    // The committed run folders whose recorded configs are runs of the sweep are taken in
+    // as finished runs; the others are named.
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("cs");
+    let r = ifslab_experiments::sweep::local::adopt(&p, &out, &repro.join("results/runs")).unwrap();
+    assert_eq!(r.adopted.len(), 78, "{:?}", r.unmatched);
+    // The `hybrid_variance` runs completed their partial [strategy.annealing] table with the
+    // single-annealing defaults of the time (1 candidate, not the hybrid's 10): not the
+    // sweep's runs.
+    assert_eq!(r.unmatched.len(), 9);
+    assert!(
+        r.unmatched
+            .iter()
+            .all(|(d, _)| d.to_string_lossy().contains("random-hybrid_variance-")),
+        "{:?}",
+        r.unmatched
+    );
+    // Every adopted folder went to the run of the same name.
+    for (i, from) in &r.adopted {
+        assert_eq!(
+            from.file_name().unwrap().to_string_lossy(),
+            p.runs[*i].name,
+            "{}",
+            from.display()
+        );
+    }
+    let c = collect(&out).unwrap();
+    assert_eq!(c.counts(), (78, 0, 0, 9));
+    // A tier of it: --only keeps the runs matching every axis named.
+    p.retain(&[
+        ("group".into(), "em".into()),
+        ("target".into(), "sierpinski".into()),
+        ("target".into(), "fern".into()),
+    ])
+    .unwrap();
+    let names: Vec<&str> = p.runs.iter().map(|r| r.name.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "em-adam-sierpinski-s0",
+            "em-adam-fern-s0",
+            "em-hybrid-sierpinski-s0",
+            "em-hybrid-fern-s0",
+            "em-hybrid_sched-sierpinski-s0",
+            "em-hybrid_sched-fern-s0"
+        ]
+    );
+    assert!(p.clone().retain(&[("nope".into(), "x".into())]).is_err());
+    assert!(p.retain(&[("group".into(), "nope".into())]).is_err());
 }

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::bail;
+use anyhow::{Context, bail};
 use ifslab_experiments::progress::Progress;
 use ifslab_experiments::sweep::local::{self, RunStatus};
 use ifslab_experiments::sweep::{Plan, PlannedRun, RunnerOptions, Shard, run_sweep, slurm};
@@ -27,10 +27,24 @@ pub struct Args {
     /// do not depend on it.
     #[arg(long)]
     pub threads: Option<usize>,
+    /// Print the resolved config of one run (its id or name, as --dry-run lists them) and
+    /// stop.
+    #[arg(long, value_name = "RUN")]
+    pub show: Option<String>,
     /// Run only shard INDEX/COUNT (0-based): the runs whose position is INDEX modulo COUNT,
     /// so COUNT machines split the sweep with no coordinator.
     #[arg(long, value_name = "INDEX/COUNT")]
     pub shard: Option<Shard>,
+    /// Only the runs with this label on this axis (AXIS=LABEL; repeat: labels of one axis
+    /// are alternatives, different axes must all match). The output folder's sweep.json then
+    /// lists only these runs, so `collect` reports on them.
+    #[arg(long, value_name = "AXIS=LABEL", value_parser = parse_only)]
+    pub only: Vec<(String, String)>,
+    /// Take the finished run folders in this folder (made by `ifslab run` or an older
+    /// script) whose configs are runs of the sweep into the output folder, instead of
+    /// running.
+    #[arg(long, value_name = "RUNS_DIR")]
+    pub adopt: Option<PathBuf>,
     /// Write a Slurm job-array script (one task per shard, resources from the sweep's
     /// [slurm] section) into DIR/slurm/ instead of running.
     #[arg(long)]
@@ -41,18 +55,31 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let plan = Plan::load(&a.sweep)?;
+    let mut plan = Plan::load(&a.sweep)?;
+    plan.retain(&a.only)?;
     let out = a
         .output
         .clone()
         .unwrap_or_else(|| PathBuf::from("out/sweeps").join(&plan.name));
     let shard = a.shard.unwrap_or(Shard::ALL);
+    if let Some(which) = &a.show {
+        let r = plan
+            .runs
+            .iter()
+            .find(|r| &r.id == which || &r.name == which)
+            .with_context(|| format!("the sweep has no run `{which}` (see --dry-run)"))?;
+        println!("# run {} ({}) of the sweep {}", r.id, r.name, plan.name);
+        print!("{}", toml::to_string_pretty(&r.resolved)?);
+        return Ok(());
+    }
     if a.dry_run {
         print!("{}", plan.describe());
         let mine: Vec<&PlannedRun> = plan
             .runs
             .iter()
-            .filter(|r| shard.contains(r.index))
+            .enumerate()
+            .filter(|(k, _)| shard.contains(*k))
+            .map(|(_, r)| r)
             .collect();
         let done = mine
             .iter()
@@ -68,6 +95,21 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             out.display(),
             mine.len() - done - partial
         );
+        return Ok(());
+    }
+    if let Some(from) = &a.adopt {
+        let r = local::adopt(&plan, &out, from)?;
+        println!(
+            "{}: adopted {} finished runs from {} ({} were already there); {} folders are no run of the sweep",
+            out.display(),
+            r.adopted.len(),
+            from.display(),
+            r.already,
+            r.unmatched.len()
+        );
+        for (d, why) in &r.unmatched {
+            println!("  left out {}: {why}", d.display());
+        }
         return Ok(());
     }
     if a.slurm {
@@ -97,6 +139,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         |r: &PlannedRun| -> Box<dyn Progress> { Box::new(RunBar::new(&mp, r.name.clone())) };
     let outcome = run_sweep(&plan, &out, &opts, &overall, &per_run)?;
     let failures = outcome.failures();
+    // Outcomes name runs by their position in the whole sweep (--only may have left gaps).
+    let run_at = |i: usize| {
+        plan.runs
+            .iter()
+            .find(|r| r.index == i)
+            .expect("outcomes are runs of the plan")
+    };
     println!(
         "{}: shard {shard} of the sweep {} ({} runs): {} finished now, {} already done, {} failed, {} running elsewhere ({} jobs × {} threads)",
         out.display(),
@@ -111,11 +160,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     );
     for (i, s) in &outcome.runs {
         if let RunStatus::Finished(rec) = s {
-            println!("  {} {}: {}", rec.id, plan.runs[*i].name, rec.headline);
+            println!("  {} {}: {}", rec.id, run_at(*i).name, rec.headline);
         }
     }
     for (i, e) in &failures {
-        let r = &plan.runs[*i];
+        let r = run_at(*i);
         eprintln!("  FAILED {} {}: {e}", r.id, r.name);
     }
     if !failures.is_empty() {
@@ -128,6 +177,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     println!("collect with: ifslab collect {}", out.display());
     Ok(())
+}
+
+fn parse_only(s: &str) -> Result<(String, String), String> {
+    s.split_once('=')
+        .map(|(a, l)| (a.trim().to_string(), l.trim().to_string()))
+        .ok_or_else(|| format!("`{s}` is not AXIS=LABEL"))
 }
 
 /// A bar of a [`MultiProgress`] behind the library's [`Progress`].

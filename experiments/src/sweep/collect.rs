@@ -715,12 +715,15 @@ fn loss_curve(dir: &Path) -> Option<Vec<(f64, f64)>> {
     (!pts.is_empty()).then_some(pts)
 }
 
+/// A run's loss curve with the position of its label on the axis.
+type Curve<'a> = (usize, &'a Row, Vec<(f64, f64)>);
+
 /// The loss curves of the finished runs, one colour per value of `axis`: every run's curve
 /// when there are at most 12, else the mean curve of each value.
 fn loss_curves(c: &Collected, axis: &str, out: &Path) -> anyhow::Result<Option<String>> {
     let k = c.axis_index(axis)?;
     let cats = c.values_of(axis)?;
-    let curves: Vec<(usize, &Row, Vec<(f64, f64)>)> = c
+    let curves: Vec<Curve<'_>> = c
         .rows
         .iter()
         .filter_map(|r| {

@@ -11,13 +11,20 @@ use sha2::{Digest, Sha256};
 use super::config::{AxisConfig, BaseConfig, SlurmConfig, SweepConfig};
 use crate::runs::RunConfig;
 
-/// The config key that never takes part in a run's identity: sweeps choose the folder.
+/// The config key of the output folder: sweeps choose the folder.
 const OUTPUT_KEY: &str = "output";
+
+/// Config keys that say how a run is carried out, not what it computes, so they take no
+/// part in its id: where it writes, and how often it checkpoints (a resumed run is
+/// bit-identical to an uninterrupted one, so checkpointing more often to survive a time
+/// limit leaves finished runs finished).
+pub const OPERATIONAL_KEYS: &[&str] = &[OUTPUT_KEY, "checkpoint_every"];
 
 /// One run of a sweep.
 #[derive(Clone, Debug)]
 pub struct PlannedRun {
-    /// Its position in the sweep (what shards split on).
+    /// Its position in the whole sweep (shards split the positions in the plan's list,
+    /// which `--only` may have shortened).
     pub index: usize,
     /// The stable id: a hash of the resolved config (same config, same id, whatever the
     /// axes that produced it or the order of the sweep).
@@ -45,6 +52,8 @@ pub struct Plan {
     pub runs: Vec<PlannedRun>,
     /// Slurm resources.
     pub slurm: SlurmConfig,
+    /// The `--only` filters applied by [`Plan::retain`] (a job-array script repeats them).
+    pub filters: Vec<(String, String)>,
 }
 
 /// What `DIR/sweep.json` holds: the plan without its configs (collect reads it).
@@ -217,7 +226,42 @@ impl Plan {
             axes: axes_names,
             runs,
             slurm: cfg.slurm.clone(),
+            filters: Vec::new(),
         })
+    }
+
+    /// Keeps only the runs whose labels match: `filters` are (axis, label) pairs; runs
+    /// must match one label of every axis named (`--only group=em --only seed=0`). Shards
+    /// split what is left (every task of a job array applies the same filters).
+    pub fn retain(&mut self, filters: &[(String, String)]) -> anyhow::Result<()> {
+        let mut axes: Vec<&str> = Vec::new();
+        for (axis, label) in filters {
+            if !self.axes.contains(axis) {
+                bail!(
+                    "--only {axis}={label}: the sweep has no axis `{axis}` (its axes: {})",
+                    self.axes.join(", ")
+                );
+            }
+            if !self
+                .runs
+                .iter()
+                .any(|r| r.labels.iter().any(|(a, l)| a == axis && l == label))
+            {
+                bail!("--only {axis}={label}: no run has {axis} = {label}");
+            }
+            if !axes.contains(&axis.as_str()) {
+                axes.push(axis);
+            }
+        }
+        self.filters.extend(filters.iter().cloned());
+        self.runs.retain(|r| {
+            axes.iter().all(|axis| {
+                filters
+                    .iter()
+                    .any(|(a, l)| a == axis && r.labels.iter().any(|(ra, rl)| ra == a && rl == l))
+            })
+        });
+        Ok(())
     }
 
     /// The plan as `sweep.json` holds it.
@@ -271,10 +315,15 @@ impl Plan {
 }
 
 /// The stable id of a resolved run config: the first 16 hex digits of the SHA-256 of its
-/// canonical text (keys sorted, floats in shortest round-trip form).
+/// canonical text (keys sorted, floats in shortest round-trip form), leaving out the
+/// [`OPERATIONAL_KEYS`].
 pub fn run_id(resolved: &toml::Table) -> String {
+    let mut t = resolved.clone();
+    for k in OPERATIONAL_KEYS {
+        t.remove(*k);
+    }
     let mut text = String::from("ifslab-run-v1\n");
-    canonical_table(resolved, &mut text);
+    canonical_table(&t, &mut text);
     let digest = Sha256::digest(text.as_bytes());
     digest[..8].iter().fold(String::new(), |mut s, b| {
         let _ = write!(s, "{b:02x}");

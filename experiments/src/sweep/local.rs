@@ -164,7 +164,9 @@ pub fn run_sweep(
     let mine: Vec<&PlannedRun> = plan
         .runs
         .iter()
-        .filter(|r| opts.shard.contains(r.index))
+        .enumerate()
+        .filter(|(k, _)| opts.shard.contains(*k))
+        .map(|(_, r)| r)
         .collect();
     let mut outcome = SweepOutcome::default();
     let mut todo = Vec::new();
@@ -304,4 +306,102 @@ fn run_one(
     })?;
     drop(lock);
     Ok(RunStatus::Finished(record))
+}
+
+/// What [`adopt`] did.
+#[derive(Debug, Default)]
+pub struct Adopted {
+    /// (run index, the folder it came from) of the runs copied in.
+    pub adopted: Vec<(usize, PathBuf)>,
+    /// Runs of the plan that were already finished in the sweep folder.
+    pub already: usize,
+    /// Folders whose config is no run of the plan (or could not be read: why).
+    pub unmatched: Vec<(PathBuf, String)>,
+}
+
+/// Takes finished run folders made outside the sweep (`ifslab run`, an older script) into
+/// the sweep folder: each folder of `from` whose `config.toml` resolves to one of the plan's
+/// runs (same id) and which has a `summary.json` is copied to `runs/ID/` as a finished run,
+/// so that `collect` tables it and the sweep does not run it again. Folders of other
+/// configs (other settings, or defaults that changed since) are left out and listed.
+pub fn adopt(plan: &Plan, out: &Path, from: &Path) -> anyhow::Result<Adopted> {
+    write_plan(plan, out)?;
+    let mut dirs: Vec<PathBuf> = std::fs::read_dir(from)
+        .with_context(|| format!("reading {}", from.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_dir())
+        .collect();
+    dirs.sort();
+    let mut result = Adopted::default();
+    for d in dirs {
+        let cfg_path = d.join("config.toml");
+        if !cfg_path.is_file() || !d.join("summary.json").is_file() {
+            result.unmatched.push((
+                d,
+                "no config.toml and summary.json: not a finished run".into(),
+            ));
+            continue;
+        }
+        let id = match crate::runs::RunConfig::load(&cfg_path).and_then(|c| c.to_table()) {
+            Ok(t) => super::expand::run_id(&t),
+            Err(e) => {
+                result.unmatched.push((d, format!("{e:#}")));
+                continue;
+            }
+        };
+        let Some(r) = plan.runs.iter().find(|r| r.id == id) else {
+            result
+                .unmatched
+                .push((d, format!("its config (id {id}) is no run of the sweep")));
+            continue;
+        };
+        if is_finished(out, &id) {
+            result.already += 1;
+            continue;
+        }
+        let partial = partial_dir(out, &id);
+        if partial.exists() {
+            std::fs::remove_dir_all(&partial)
+                .with_context(|| format!("clearing {}", partial.display()))?;
+        }
+        copy_dir(&d, &partial)?;
+        let summary: serde_json::Value = serde_json::from_slice(
+            &std::fs::read(d.join("summary.json"))
+                .with_context(|| format!("reading {}", d.join("summary.json").display()))?,
+        )
+        .with_context(|| format!("{} is not valid JSON", d.join("summary.json").display()))?;
+        let record = RunRecord {
+            id: id.clone(),
+            name: r.name.clone(),
+            problem: r.config.problem().into(),
+            labels: r.labels.clone(),
+            headline: format!("adopted from {}", d.display()),
+            seconds: summary["seconds"].as_f64().unwrap_or(f64::NAN),
+            resumed: false,
+            threads: 0,
+        };
+        ifslab::io::write_atomic(
+            &partial.join(RECORD_FILE),
+            serde_json::to_string_pretty(&record)?.as_bytes(),
+        )?;
+        std::fs::rename(&partial, run_dir(out, &id))
+            .with_context(|| format!("moving {} into place", partial.display()))?;
+        result.adopted.push((r.index, d));
+    }
+    Ok(result)
+}
+
+fn copy_dir(from: &Path, to: &Path) -> anyhow::Result<()> {
+    std::fs::create_dir_all(to).with_context(|| format!("creating {}", to.display()))?;
+    for e in std::fs::read_dir(from).with_context(|| format!("reading {}", from.display()))? {
+        let p = e?.path();
+        let dest = to.join(p.file_name().unwrap_or_default());
+        if p.is_dir() {
+            copy_dir(&p, &dest)?;
+        } else {
+            std::fs::copy(&p, &dest)
+                .with_context(|| format!("copying {} to {}", p.display(), dest.display()))?;
+        }
+    }
+    Ok(())
 }

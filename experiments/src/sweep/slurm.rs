@@ -88,9 +88,14 @@ pub fn script(plan: &Plan, out: &Path, exe: &Path) -> String {
         Some(c) => format!("${{SLURM_CPUS_PER_TASK:-{c}}}"),
         None => "${SLURM_CPUS_PER_TASK:-1}".into(),
     };
+    let only: String = plan
+        .filters
+        .iter()
+        .map(|(a, l)| format!(" --only {}", shell_quote(&format!("{a}={l}"))))
+        .collect();
     let _ = writeln!(
         t,
-        "{} sweep {} -o {} --shard \"${{SLURM_ARRAY_TASK_ID}}/{n}\" --jobs 1 --threads \"{threads}\" &",
+        "{} sweep {} -o {}{only} --shard \"${{SLURM_ARRAY_TASK_ID}}/{n}\" --jobs 1 --threads \"{threads}\" &",
         q(exe),
         q(&plan.source),
         q(out)
