@@ -170,7 +170,8 @@ pub fn category_chart(
     let lo = y0.min(0.0);
     let pad = ((y1 - lo) * 0.08).max(1e-9);
     let n = categories.len();
-    let width = (160 + 90 * n as u32).clamp(520, 1800);
+    // Room for labels like `random_3000it/hybrid` under each bar.
+    let width = (160 + 150 * n as u32).clamp(520, 2600);
     let root = BitMapBackend::new(path, (width, 520)).into_drawing_area();
     root.fill(&WHITE)?;
     let mut chart = ChartBuilder::on(&root)

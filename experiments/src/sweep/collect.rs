@@ -24,6 +24,9 @@ use crate::plot::{Series, category_chart, ensure_font, line_chart};
 /// runs of the same sweep (here or on a cluster, in one go or resumed).
 pub const WALL_TIME_COLUMNS: &[&str] = &["seconds", "run_seconds", "resumed", "threads"];
 
+/// Groupings with more categories than this get a table and no plots.
+pub const MAX_CATEGORIES: usize = 16;
+
 /// Where a planned run stands.
 #[derive(Clone, Debug, PartialEq)]
 pub enum RunState {
@@ -274,6 +277,31 @@ impl Collected {
         for r in &self.rows {
             if !v.contains(&r.labels[k]) {
                 v.push(r.labels[k].clone());
+            }
+        }
+        Ok(v)
+    }
+
+    /// A row's labels on some axes, joined with `/` (a category of a grouped plot).
+    pub fn key(&self, axes: &[String], row: &Row) -> String {
+        axes.iter()
+            .filter_map(|a| self.axes.iter().position(|x| x == a))
+            .map(|k| row.labels[k].as_str())
+            .collect::<Vec<_>>()
+            .join("/")
+    }
+
+    /// The distinct [`Collected::key`]s of some axes, in sweep order; an unknown axis is
+    /// an error.
+    pub fn keys_of(&self, axes: &[String]) -> anyhow::Result<Vec<String>> {
+        for a in axes {
+            self.axis_index(a)?;
+        }
+        let mut v: Vec<String> = Vec::new();
+        for r in &self.rows {
+            let k = self.key(axes, r);
+            if !v.contains(&k) {
+                v.push(k);
             }
         }
         Ok(v)
@@ -596,37 +624,38 @@ pub fn write_report(c: &Collected, out: &Path, opts: &ReportOptions) -> anyhow::
         let _ = writeln!(md, "## By {}\n", group.join(" × "));
         md.push_str(&agg.to_markdown(&tabled));
         md.push('\n');
-        if group.len() == 1 {
-            let axis = &group[0];
-            let cats = c.values_of(axis)?;
-            let k = c.axis_index(axis)?;
-            for m in &plotted {
-                let points: Vec<(usize, f64)> = c
-                    .rows
-                    .iter()
-                    .filter_map(|r| {
-                        let v = Collected::value(r, m)?;
-                        Some((cats.iter().position(|x| x == &r.labels[k])?, v))
-                    })
-                    .collect();
-                if points.is_empty() {
-                    continue;
-                }
-                let file = format!("{}_by_{}.png", file_word(m), file_word(axis));
-                category_chart(
-                    &out.join(&file),
-                    &format!("{m} by {axis}"),
-                    m,
-                    &cats,
-                    &points,
-                )?;
-                let _ = writeln!(md, "![{m} by {axis}]({file})");
-            }
-            if let Some(file) = loss_curves(c, axis, out)? {
-                let _ = writeln!(md, "\nLoss curves by {axis}:\n\n![loss by {axis}]({file})");
-            }
-            md.push('\n');
+        // Plots: one category per combination of the group's labels ("random/adam").
+        let cats = c.keys_of(group)?;
+        let tag = file_word(&group.join("+"));
+        let what = group.join(" × ");
+        if cats.len() > MAX_CATEGORIES {
+            let _ = writeln!(
+                md,
+                "({} combinations: too many to plot; the table has them.)\n",
+                cats.len()
+            );
+            continue;
         }
+        for m in &plotted {
+            let points: Vec<(usize, f64)> = c
+                .rows
+                .iter()
+                .filter_map(|r| {
+                    let v = Collected::value(r, m)?;
+                    Some((cats.iter().position(|x| *x == c.key(group, r))?, v))
+                })
+                .collect();
+            if points.is_empty() {
+                continue;
+            }
+            let file = format!("{}_by_{tag}.png", file_word(m));
+            category_chart(&out.join(&file), &format!("{m} by {what}"), m, &cats, &points)?;
+            let _ = writeln!(md, "![{m} by {what}]({file})");
+        }
+        if let Some(file) = loss_curves(c, group, &cats, out)? {
+            let _ = writeln!(md, "\nLoss curves by {what}:\n\n![loss by {what}]({file})");
+        }
+        md.push('\n');
     }
     md.push_str("## Every run\n\n");
     md.push_str(&runs_markdown(c, &tabled));
@@ -720,15 +749,19 @@ type Curve<'a> = (usize, &'a Row, Vec<(f64, f64)>);
 
 /// The loss curves of the finished runs, one colour per value of `axis`: every run's curve
 /// when there are at most 12, else the mean curve of each value.
-fn loss_curves(c: &Collected, axis: &str, out: &Path) -> anyhow::Result<Option<String>> {
-    let k = c.axis_index(axis)?;
-    let cats = c.values_of(axis)?;
+fn loss_curves(
+    c: &Collected,
+    group: &[String],
+    cats: &[String],
+    out: &Path,
+) -> anyhow::Result<Option<String>> {
+    let axis = group.join(" × ");
     let curves: Vec<Curve<'_>> = c
         .rows
         .iter()
         .filter_map(|r| {
             let curve = loss_curve(r.dir.as_deref()?)?;
-            Some((cats.iter().position(|x| x == &r.labels[k])?, r, curve))
+            Some((cats.iter().position(|x| *x == c.key(group, r))?, r, curve))
         })
         .collect();
     if curves.is_empty() {
@@ -745,7 +778,7 @@ fn loss_curves(c: &Collected, axis: &str, out: &Path) -> anyhow::Result<Option<S
             });
         }
     } else {
-        names = cats.iter().map(|v| format!("{axis}={v} (mean)")).collect();
+        names = cats.iter().map(|v| format!("{v} (mean)")).collect();
         for (ci, n) in names.iter().enumerate() {
             let mine: Vec<&Vec<(f64, f64)>> =
                 curves.iter().filter(|x| x.0 == ci).map(|x| &x.2).collect();
@@ -761,7 +794,7 @@ fn loss_curves(c: &Collected, axis: &str, out: &Path) -> anyhow::Result<Option<S
             series.push(Series { name: n, points });
         }
     }
-    let file = format!("loss_by_{}.png", file_word(axis));
+    let file = format!("loss_by_{}.png", file_word(&group.join("+")));
     line_chart(
         &out.join(&file),
         &format!("loss by {axis}"),
