@@ -649,7 +649,13 @@ pub fn write_report(c: &Collected, out: &Path, opts: &ReportOptions) -> anyhow::
                 continue;
             }
             let file = format!("{}_by_{tag}.png", file_word(m));
-            category_chart(&out.join(&file), &format!("{m} by {what}"), m, &cats, &points)?;
+            category_chart(
+                &out.join(&file),
+                &format!("{m} by {what}"),
+                m,
+                &cats,
+                &points,
+            )?;
             let _ = writeln!(md, "![{m} by {what}]({file})");
         }
         if let Some(file) = loss_curves(c, group, &cats, out)? {
