@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The project's test command (README): fetch optional model weights and flam3 if the registries are
-# reachable, then run every test of the workspace.
+# reachable, then run every test of the workspace, then the sweep test on a one-node Slurm.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 if [ -f scripts/fetch_lpips.py ] && command -v python3 >/dev/null 2>&1; then
@@ -16,3 +16,16 @@ if ! command -v flam3-render >/dev/null 2>&1 && command -v apt-get >/dev/null 2>
     || echo "warning: flam3 unavailable; the flam3-render test will fail"
 fi
 cargo test --workspace
+# Sweeps on a real (one-node, localhost) Slurm cluster: skipped, loudly, where Slurm cannot
+# be installed or started; never a silent pass.
+cargo build --release -p ifslab-experiments
+status=0
+scripts/slurm_test.sh target/release/ifslab || status=$?
+if [ "$status" = 77 ]; then
+  echo "=================================================================="
+  echo "SKIPPED: the Slurm sweep test (scripts/slurm_test.sh; reason above)"
+  echo "=================================================================="
+elif [ "$status" != 0 ]; then
+  echo "FAILED: the Slurm sweep test (scripts/slurm_test.sh)"
+  exit "$status"
+fi

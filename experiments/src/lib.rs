@@ -10,10 +10,13 @@
 //! - [`runs::landscape`]: loss landscapes of a run (`ifslab landscape`);
 //! - [`plot`]: line charts, scatter plots and heat maps with a bundled font;
 //! - [`progress`]: the progress callback;
-//! - [`codes::resolve_code`]: a code from a file or a built-in name.
+//! - [`codes::resolve_code`]: a code from a file or a built-in name;
+//! - [`sweep`]: many runs from one sweep file: locally, in shards, as a Slurm job array, and
+//!   their collected report.
 #![warn(missing_docs)]
 
 pub mod codes;
 pub mod plot;
 pub mod progress;
 pub mod runs;
+pub mod sweep;

@@ -38,6 +38,10 @@ enum Command {
     Invert(cmd::invert::Args),
     /// Run the inversion described by a config file.
     Run(cmd::run::Args),
+    /// Run the runs of a sweep file: here, as one shard, or as a Slurm job array.
+    Sweep(cmd::sweep::Args),
+    /// Merge a sweep's results into one table, aggregates, plots and a Markdown report.
+    Collect(cmd::collect::Args),
     /// Plot the loss landscape of a run: the objective on a 2-D slice through its code.
     Landscape(cmd::landscape::Args),
     /// Where the LPIPS weights are looked for; `weights fetch` downloads and converts them.
@@ -57,6 +61,8 @@ fn main() -> anyhow::Result<()> {
         Command::Texture(a) => cmd::texture::run(a),
         Command::Invert(a) => cmd::invert::run(a),
         Command::Run(a) => cmd::run::run(a),
+        Command::Sweep(a) => cmd::sweep::run(a),
+        Command::Collect(a) => cmd::collect::run(a),
         Command::Landscape(a) => cmd::landscape::run(a),
         Command::Weights(a) => cmd::weights::run(a),
         Command::Flame(a) => cmd::flame::run(a),

@@ -148,6 +148,76 @@ pub fn scatter(
     Ok(())
 }
 
+/// A metric per category (the values of a sweep axis): every run as a dot, the mean of
+/// each category as a bar behind its dots.
+pub fn category_chart(
+    path: &Path,
+    title: &str,
+    y_label: &str,
+    categories: &[String],
+    points: &[(usize, f64)],
+) -> anyhow::Result<()> {
+    ensure_font();
+    let finite: Vec<(usize, f64)> = points
+        .iter()
+        .copied()
+        .filter(|(c, v)| v.is_finite() && *c < categories.len())
+        .collect();
+    if finite.is_empty() || categories.is_empty() {
+        anyhow::bail!("nothing to plot in {title}");
+    }
+    let (y0, y1) = min_max(finite.iter().map(|p| p.1));
+    let lo = y0.min(0.0);
+    let pad = ((y1 - lo) * 0.08).max(1e-9);
+    let n = categories.len();
+    // Room for labels like `random_3000it/hybrid` under each bar.
+    let width = (160 + 150 * n as u32).clamp(520, 2600);
+    let root = BitMapBackend::new(path, (width, 520)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 22))
+        .margin(12)
+        .x_label_area_size(60)
+        .y_label_area_size(70)
+        .build_cartesian_2d(-0.5f64..(n as f64 - 0.5), lo..(y1 + pad))?;
+    let cats = categories.to_vec();
+    chart
+        .configure_mesh()
+        .disable_x_mesh()
+        .x_labels(n)
+        .x_label_formatter(&move |x: &f64| {
+            let k = x.round();
+            if (x - k).abs() < 1e-6 && k >= 0.0 && (k as usize) < cats.len() {
+                cats[k as usize].clone()
+            } else {
+                String::new()
+            }
+        })
+        .y_desc(y_label)
+        .label_style(("sans-serif", 13))
+        .draw()?;
+    for c in 0..n {
+        let vs: Vec<f64> = finite.iter().filter(|p| p.0 == c).map(|p| p.1).collect();
+        if vs.is_empty() {
+            continue;
+        }
+        let mean = vs.iter().sum::<f64>() / vs.len() as f64;
+        let x = c as f64;
+        chart.draw_series(std::iter::once(Rectangle::new(
+            [(x - 0.3, lo), (x + 0.3, mean)],
+            Palette99::pick(c).mix(0.35).filled(),
+        )))?;
+    }
+    chart.draw_series(finite.iter().enumerate().map(|(i, &(c, v))| {
+        // A small deterministic spread so that equal values stay visible.
+        let dx = ((i % 5) as f64 - 2.0) * 0.05;
+        Circle::new((c as f64 + dx, v), 4, BLACK.filled())
+    }))?;
+    root.present()
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}
+
 /// One heat-map panel: values on a row-major `ys.len() × xs.len()` grid (rows along y).
 pub struct Heat<'a> {
     /// Panel title.

@@ -1,6 +1,7 @@
 //! One module per subcommand: its clap `Args` and a `run` function.
 
 pub mod codes;
+pub mod collect;
 pub mod demo;
 pub mod fit_points;
 pub mod flame;
@@ -9,6 +10,7 @@ pub mod landscape;
 pub mod render;
 pub mod run;
 pub mod sample;
+pub mod sweep;
 pub mod texture;
 pub mod weights;
 

@@ -1,0 +1,48 @@
+//! `ifslab collect DIR`: a sweep folder's results in one table, aggregates, plots and a
+//! Markdown report.
+
+use std::path::PathBuf;
+
+use ifslab_experiments::sweep::collect::{ReportOptions, collect, write_report};
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The sweep's output folder (what `ifslab sweep -o` wrote; shards and array tasks
+    /// merge into it).
+    pub dir: PathBuf,
+    /// Report folder (default: DIR/report).
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Group by these axes (comma-separated for a combination, e.g. `group,strategy`;
+    /// repeat for several tables). Default: each axis that varies, one at a time.
+    #[arg(long)]
+    pub by: Vec<String>,
+    /// Metrics in tables and plots (repeatable). Default: every metric that varies.
+    #[arg(long)]
+    pub metric: Vec<String>,
+    /// At most this many runs in the picture grid.
+    #[arg(long, default_value_t = 48)]
+    pub max_pictures: usize,
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let c = collect(&a.dir)?;
+    let out = a.output.unwrap_or_else(|| a.dir.join("report"));
+    let opts = ReportOptions {
+        by: a
+            .by
+            .iter()
+            .map(|b| b.split(',').map(|s| s.trim().to_string()).collect())
+            .collect(),
+        metrics: a.metric,
+        max_pictures: a.max_pictures,
+    };
+    let report = write_report(&c, &out, &opts)?;
+    let (finished, failed, interrupted, missing) = c.counts();
+    println!(
+        "{}: {} runs ({finished} finished, {failed} failed, {interrupted} interrupted, {missing} not started)",
+        report.display(),
+        c.rows.len()
+    );
+    Ok(())
+}

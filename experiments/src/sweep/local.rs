@@ -1,0 +1,407 @@
+//! Running a sweep's runs on this machine: N at a time, each in its own rayon pool of T
+//! threads; finished runs are skipped, interrupted ones resumed, failed ones re-done.
+//!
+//! A run works in `runs/.ID.partial/` and becomes `runs/ID/` by one rename once its
+//! `run.json` is written, so a crashed or cancelled task never leaves a folder that looks
+//! finished. A lock file (`runs/.locks/ID`, released by the kernel when its process dies)
+//! keeps two processes off the same run.
+
+use std::fs::{File, TryLockError};
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::Instant;
+
+use anyhow::{Context, bail};
+use serde::{Deserialize, Serialize};
+
+use super::expand::{Plan, PlannedRun};
+use super::shard::Shard;
+use crate::progress::Progress;
+
+/// The sweep's index in its output folder.
+pub const PLAN_FILE: &str = "sweep.json";
+/// The run folders' parent.
+pub const RUNS_DIR: &str = "runs";
+/// What a finished run folder holds besides the run's own outputs.
+pub const RECORD_FILE: &str = "run.json";
+/// What a failed attempt leaves in its partial folder.
+pub const ERROR_FILE: &str = "error.txt";
+
+/// The folder of a finished run.
+pub fn run_dir(out: &Path, id: &str) -> PathBuf {
+    out.join(RUNS_DIR).join(id)
+}
+
+/// The folder a run works in until it is finished.
+pub fn partial_dir(out: &Path, id: &str) -> PathBuf {
+    out.join(RUNS_DIR).join(format!(".{id}.partial"))
+}
+
+/// Whether the run with this id is finished in `out`.
+pub fn is_finished(out: &Path, id: &str) -> bool {
+    run_dir(out, id).join(RECORD_FILE).is_file()
+}
+
+/// What a finished run folder's `run.json` says.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct RunRecord {
+    /// The stable id.
+    pub id: String,
+    /// The labels joined.
+    pub name: String,
+    /// The problem.
+    pub problem: String,
+    /// (axis, label) pairs.
+    pub labels: Vec<(String, String)>,
+    /// The run's one-line report.
+    pub headline: String,
+    /// Wall-clock seconds of the attempt that finished it.
+    pub seconds: f64,
+    /// Whether that attempt continued an interrupted one.
+    pub resumed: bool,
+    /// Threads it had.
+    pub threads: usize,
+}
+
+/// How the local runner runs.
+#[derive(Clone, Copy, Debug)]
+pub struct RunnerOptions {
+    /// Runs at once.
+    pub jobs: usize,
+    /// Threads of each run.
+    pub threads: usize,
+    /// Which runs of the sweep.
+    pub shard: Shard,
+}
+
+impl RunnerOptions {
+    /// `jobs` at once, the machine's cores shared between them.
+    pub fn new(jobs: usize, threads: Option<usize>, shard: Shard) -> anyhow::Result<Self> {
+        if jobs == 0 {
+            bail!("--jobs must be at least 1");
+        }
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let threads = threads.unwrap_or((cores / jobs).max(1));
+        if threads == 0 {
+            bail!("--threads must be at least 1");
+        }
+        Ok(RunnerOptions {
+            jobs,
+            threads,
+            shard,
+        })
+    }
+}
+
+/// How one run went.
+#[derive(Clone, Debug)]
+pub enum RunStatus {
+    /// Finished before this call.
+    Skipped,
+    /// Finished now.
+    Finished(RunRecord),
+    /// Failed with this error; its partial folder stays for a look and a resume.
+    Failed(String),
+    /// Another process holds it.
+    Busy,
+}
+
+/// What a call of [`run_sweep`] did, run by run (the shard's runs, in sweep order).
+#[derive(Debug, Default)]
+pub struct SweepOutcome {
+    /// (run index, status).
+    pub runs: Vec<(usize, RunStatus)>,
+}
+
+impl SweepOutcome {
+    fn count(&self, f: impl Fn(&RunStatus) -> bool) -> usize {
+        self.runs.iter().filter(|(_, s)| f(s)).count()
+    }
+    /// Runs finished by this call.
+    pub fn finished(&self) -> usize {
+        self.count(|s| matches!(s, RunStatus::Finished(_)))
+    }
+    /// Runs that were already finished.
+    pub fn skipped(&self) -> usize {
+        self.count(|s| matches!(s, RunStatus::Skipped))
+    }
+    /// Runs held by another process.
+    pub fn busy(&self) -> usize {
+        self.count(|s| matches!(s, RunStatus::Busy))
+    }
+    /// The failures: (run index, error).
+    pub fn failures(&self) -> Vec<(usize, &str)> {
+        self.runs
+            .iter()
+            .filter_map(|(i, s)| match s {
+                RunStatus::Failed(e) => Some((*i, e.as_str())),
+                _ => None,
+            })
+            .collect()
+    }
+}
+
+/// Writes the plan's index into `out` (every call does: shards write the same bytes).
+pub fn write_plan(plan: &Plan, out: &Path) -> anyhow::Result<()> {
+    std::fs::create_dir_all(out.join(RUNS_DIR))
+        .with_context(|| format!("creating {}", out.join(RUNS_DIR).display()))?;
+    let text = serde_json::to_string_pretty(&plan.index())?;
+    ifslab::io::write_atomic(&out.join(PLAN_FILE), text.as_bytes())?;
+    Ok(())
+}
+
+/// Runs the shard's unfinished runs of `plan` into `out`. `overall` counts the runs to do;
+/// `per_run` gives each run its own progress. A failing run does not stop the others.
+pub fn run_sweep(
+    plan: &Plan,
+    out: &Path,
+    opts: &RunnerOptions,
+    overall: &dyn Progress,
+    per_run: &(dyn Fn(&PlannedRun) -> Box<dyn Progress> + Sync),
+) -> anyhow::Result<SweepOutcome> {
+    write_plan(plan, out)?;
+    let mine: Vec<&PlannedRun> = plan
+        .runs
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| opts.shard.contains(*k))
+        .map(|(_, r)| r)
+        .collect();
+    let mut outcome = SweepOutcome::default();
+    let mut todo = Vec::new();
+    for r in mine {
+        if is_finished(out, &r.id) {
+            outcome.runs.push((r.index, RunStatus::Skipped));
+        } else {
+            todo.push(r);
+        }
+    }
+    overall.start("runs", todo.len() as u64);
+    let next = AtomicUsize::new(0);
+    let results = Mutex::new(Vec::new());
+    let failed = AtomicUsize::new(0);
+    std::thread::scope(|s| {
+        for _ in 0..opts.jobs.min(todo.len()) {
+            s.spawn(|| {
+                loop {
+                    let k = next.fetch_add(1, Ordering::SeqCst);
+                    let Some(r) = todo.get(k) else { break };
+                    let status = match run_one(r, out, opts.threads, per_run) {
+                        Ok(s) => s,
+                        Err(e) => RunStatus::Failed(format!("{e:#}")),
+                    };
+                    if matches!(status, RunStatus::Failed(_)) {
+                        let n = failed.fetch_add(1, Ordering::SeqCst) + 1;
+                        overall.message(&format!("{n} failed"));
+                    }
+                    overall.inc(1);
+                    results
+                        .lock()
+                        .unwrap_or_else(|p| p.into_inner())
+                        .push((r.index, status));
+                }
+            });
+        }
+    });
+    overall.finish();
+    outcome
+        .runs
+        .extend(results.into_inner().unwrap_or_else(|p| p.into_inner()));
+    outcome.runs.sort_by_key(|(i, _)| *i);
+    Ok(outcome)
+}
+
+/// Runs (or resumes) one run and moves it into place.
+fn run_one(
+    r: &PlannedRun,
+    out: &Path,
+    threads: usize,
+    per_run: &(dyn Fn(&PlannedRun) -> Box<dyn Progress> + Sync),
+) -> anyhow::Result<RunStatus> {
+    let locks = out.join(RUNS_DIR).join(".locks");
+    std::fs::create_dir_all(&locks).with_context(|| format!("creating {}", locks.display()))?;
+    let lock_path = locks.join(&r.id);
+    let lock = File::options()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(&lock_path)
+        .with_context(|| format!("opening {}", lock_path.display()))?;
+    match lock.try_lock() {
+        Ok(()) => {}
+        Err(TryLockError::WouldBlock) => return Ok(RunStatus::Busy),
+        Err(TryLockError::Error(e)) => {
+            return Err(e).with_context(|| format!("locking {}", lock_path.display()));
+        }
+    }
+    // Another process may have finished it between the first look and the lock.
+    if is_finished(out, &r.id) {
+        return Ok(RunStatus::Skipped);
+    }
+    let partial = partial_dir(out, &r.id);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .context("starting the run's thread pool")?;
+    let started = Instant::now();
+    let had_partial = partial.is_dir();
+    let _ = std::fs::remove_file(partial.join(ERROR_FILE));
+    // Resume what an interrupted attempt left; if it left nothing to resume from (no
+    // checkpoint yet), start again from nothing.
+    let mut report = None;
+    let mut resumed = false;
+    if had_partial {
+        match pool.install(|| r.config.run(&partial, true, per_run(r))) {
+            Ok(rep) => {
+                report = Some(rep);
+                resumed = true;
+            }
+            Err(_) => {
+                std::fs::remove_dir_all(&partial)
+                    .with_context(|| format!("clearing {}", partial.display()))?;
+            }
+        }
+    }
+    let report = match report {
+        Some(r) => r,
+        None => {
+            if partial.exists() {
+                std::fs::remove_dir_all(&partial)
+                    .with_context(|| format!("clearing {}", partial.display()))?;
+            }
+            std::fs::create_dir_all(&partial)
+                .with_context(|| format!("creating {}", partial.display()))?;
+            match pool.install(|| r.config.run(&partial, false, per_run(r))) {
+                Ok(rep) => rep,
+                Err(e) => {
+                    let text = format!("{e:#}\n");
+                    let _ = ifslab::io::write_atomic(&partial.join(ERROR_FILE), text.as_bytes());
+                    return Ok(RunStatus::Failed(format!("{e:#}")));
+                }
+            }
+        }
+    };
+    let record = RunRecord {
+        id: r.id.clone(),
+        name: r.name.clone(),
+        problem: report.problem.clone(),
+        labels: r.labels.clone(),
+        headline: report.headline.clone(),
+        seconds: started.elapsed().as_secs_f64(),
+        resumed,
+        threads,
+    };
+    ifslab::io::write_atomic(
+        &partial.join(RECORD_FILE),
+        serde_json::to_string_pretty(&record)?.as_bytes(),
+    )?;
+    let done = run_dir(out, &r.id);
+    std::fs::rename(&partial, &done).with_context(|| {
+        format!(
+            "moving the finished run {} to {}",
+            partial.display(),
+            done.display()
+        )
+    })?;
+    drop(lock);
+    Ok(RunStatus::Finished(record))
+}
+
+/// What [`adopt`] did.
+#[derive(Debug, Default)]
+pub struct Adopted {
+    /// (run index, the folder it came from) of the runs copied in.
+    pub adopted: Vec<(usize, PathBuf)>,
+    /// Runs of the plan that were already finished in the sweep folder.
+    pub already: usize,
+    /// Folders whose config is no run of the plan (or could not be read: why).
+    pub unmatched: Vec<(PathBuf, String)>,
+}
+
+/// Takes finished run folders made outside the sweep (`ifslab run`, an older script) into
+/// the sweep folder: each folder of `from` whose `config.toml` resolves to one of the plan's
+/// runs (same id) and which has a `summary.json` is copied to `runs/ID/` as a finished run,
+/// so that `collect` tables it and the sweep does not run it again. Folders of other
+/// configs (other settings, or defaults that changed since) are left out and listed.
+pub fn adopt(plan: &Plan, out: &Path, from: &Path) -> anyhow::Result<Adopted> {
+    write_plan(plan, out)?;
+    let mut dirs: Vec<PathBuf> = std::fs::read_dir(from)
+        .with_context(|| format!("reading {}", from.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_dir())
+        .collect();
+    dirs.sort();
+    let mut result = Adopted::default();
+    for d in dirs {
+        let cfg_path = d.join("config.toml");
+        if !cfg_path.is_file() || !d.join("summary.json").is_file() {
+            result.unmatched.push((
+                d,
+                "no config.toml and summary.json: not a finished run".into(),
+            ));
+            continue;
+        }
+        let id = match crate::runs::RunConfig::load(&cfg_path).and_then(|c| c.to_table()) {
+            Ok(t) => super::expand::run_id(&t),
+            Err(e) => {
+                result.unmatched.push((d, format!("{e:#}")));
+                continue;
+            }
+        };
+        let Some(r) = plan.runs.iter().find(|r| r.id == id) else {
+            result
+                .unmatched
+                .push((d, format!("its config (id {id}) is no run of the sweep")));
+            continue;
+        };
+        if is_finished(out, &id) {
+            result.already += 1;
+            continue;
+        }
+        let partial = partial_dir(out, &id);
+        if partial.exists() {
+            std::fs::remove_dir_all(&partial)
+                .with_context(|| format!("clearing {}", partial.display()))?;
+        }
+        copy_dir(&d, &partial)?;
+        let summary: serde_json::Value = serde_json::from_slice(
+            &std::fs::read(d.join("summary.json"))
+                .with_context(|| format!("reading {}", d.join("summary.json").display()))?,
+        )
+        .with_context(|| format!("{} is not valid JSON", d.join("summary.json").display()))?;
+        let record = RunRecord {
+            id: id.clone(),
+            name: r.name.clone(),
+            problem: r.config.problem().into(),
+            labels: r.labels.clone(),
+            headline: format!("adopted from {}", d.display()),
+            seconds: summary["seconds"].as_f64().unwrap_or(f64::NAN),
+            resumed: false,
+            threads: 0,
+        };
+        ifslab::io::write_atomic(
+            &partial.join(RECORD_FILE),
+            serde_json::to_string_pretty(&record)?.as_bytes(),
+        )?;
+        std::fs::rename(&partial, run_dir(out, &id))
+            .with_context(|| format!("moving {} into place", partial.display()))?;
+        result.adopted.push((r.index, d));
+    }
+    Ok(result)
+}
+
+fn copy_dir(from: &Path, to: &Path) -> anyhow::Result<()> {
+    std::fs::create_dir_all(to).with_context(|| format!("creating {}", to.display()))?;
+    for e in std::fs::read_dir(from).with_context(|| format!("reading {}", from.display()))? {
+        let p = e?.path();
+        let dest = to.join(p.file_name().unwrap_or_default());
+        if p.is_dir() {
+            copy_dir(&p, &dest)?;
+        } else {
+            std::fs::copy(&p, &dest)
+                .with_context(|| format!("copying {} to {}", p.display(), dest.display()))?;
+        }
+    }
+    Ok(())
+}

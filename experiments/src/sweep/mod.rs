@@ -1,0 +1,28 @@
+//! Sweeps: many runs from one file, run here (N at a time), split into shards over
+//! machines, or submitted as a Slurm job array, and collected into one report.
+//!
+//! - [`config`]: the sweep file ([`SweepConfig`]): a base run config, overrides, axes,
+//!   groups and Slurm resources;
+//! - [`expand`]: the sweep as a [`Plan`] of validated runs with stable ids (a hash of the
+//!   resolved config);
+//! - [`shard`]: `--shard i/n`, a deterministic subset;
+//! - [`local`]: the runner (skip finished, resume interrupted, re-do failed; atomic run
+//!   folders);
+//! - [`slurm`]: the job-array script and its submission;
+//! - [`collect`]: every run's summary in one table, aggregated, with plots and a Markdown
+//!   report.
+//!
+//! Sweeps know runs only through [`crate::runs::RunConfig`], so every problem `ifslab run`
+//! accepts can be swept.
+
+pub mod collect;
+pub mod config;
+pub mod expand;
+pub mod local;
+pub mod shard;
+pub mod slurm;
+
+pub use config::SweepConfig;
+pub use expand::{Plan, PlannedRun};
+pub use local::{RunStatus, RunnerOptions, SweepOutcome, run_sweep};
+pub use shard::Shard;

@@ -1,0 +1,671 @@
+//! Sweeps end to end: a sweep file expands into validated runs with stable ids; shards split
+//! it with nothing lost or run twice; the local runner skips finished runs, re-does failed
+//! ones and resumes killed ones to the same result; collect merges it all into one table.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use ifslab_experiments::progress::{Progress, Silent};
+use ifslab_experiments::sweep::collect::{ReportOptions, RunState, collect, write_report};
+use ifslab_experiments::sweep::local::{RECORD_FILE, RunRecord, partial_dir, run_dir};
+use ifslab_experiments::sweep::{
+    Plan, PlannedRun, RunStatus, RunnerOptions, Shard, SweepConfig, run_sweep, slurm,
+};
+
+/// A base config whose runs take seconds: a 32² target, few iterations.
+const BASE: &str = r#"
+iterations = 12
+checkpoint_every = 3
+[target]
+code = "sierpinski"
+size = 32
+[model]
+maps = 3
+init = "em"
+[generator]
+trajectories = 100
+length = 40
+warmup = 10
+[renderer]
+supersample = 2
+"#;
+
+fn plan(dir: &Path, sweep: &str) -> anyhow::Result<Plan> {
+    std::fs::write(dir.join("base.toml"), BASE).unwrap();
+    let path = dir.join("sweep.toml");
+    std::fs::write(&path, sweep).unwrap();
+    Plan::load(&path)
+}
+
+fn err(dir: &Path, sweep: &str) -> String {
+    format!("{:#}", plan(dir, sweep).unwrap_err())
+}
+
+fn silent(_: &PlannedRun) -> Box<dyn Progress> {
+    Box::new(Silent)
+}
+
+fn ifslab(args: &[&str]) -> (bool, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_ifslab"))
+        .args(args)
+        .output()
+        .expect("the binary runs");
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (out.status.success(), text)
+}
+
+/// A summary without its wall-time field.
+fn summary(dir: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(dir.join("summary.json")).unwrap();
+    let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    v.as_object_mut().unwrap().remove("seconds");
+    v
+}
+
+#[test]
+fn axes_expand_in_order_with_labels_and_stable_ids() {
+    let tmp = tempfile::tempdir().unwrap();
+    let sweep = r#"
+base = "base.toml"
+[set]
+iterations = 7
+[[axis]]
+name = "strategy"
+[[axis.value]]
+label = "adam"
+set = { "strategy.kind" = "adam" }
+[[axis.value]]
+label = "hybrid"
+set = { strategy = { kind = "hybrid", anneal_every = 3 } }
+[[axis]]
+key = "seed"
+values = [0, 1, 2]
+labels = ["s0", "s1", "s2"]
+"#;
+    let p = plan(tmp.path(), sweep).unwrap();
+    assert_eq!(p.axes, ["strategy", "seed"]);
+    let names: Vec<&str> = p.runs.iter().map(|r| r.name.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "adam-s0",
+            "adam-s1",
+            "adam-s2",
+            "hybrid-s0",
+            "hybrid-s1",
+            "hybrid-s2"
+        ]
+    );
+    // The overrides reached the configs: [set], a dotted key, a nested table.
+    let r4 = &p.runs[4].resolved;
+    assert_eq!(r4["iterations"].as_integer(), Some(7));
+    assert_eq!(r4["seed"].as_integer(), Some(1));
+    assert_eq!(r4["strategy"]["kind"].as_str(), Some("hybrid"));
+    assert_eq!(r4["strategy"]["anneal_every"].as_integer(), Some(3));
+    // Ids are distinct, hex, and the same when the sweep is read again.
+    let ids: Vec<String> = p.runs.iter().map(|r| r.id.clone()).collect();
+    assert!(
+        ids.iter()
+            .all(|id| id.len() == 16 && id.chars().all(|c| c.is_ascii_hexdigit()))
+    );
+    let again = plan(tmp.path(), sweep).unwrap();
+    assert_eq!(
+        ids,
+        again.runs.iter().map(|r| r.id.clone()).collect::<Vec<_>>()
+    );
+    // An id belongs to the resolved config, not to the sweep that produced it: the same run
+    // written as the base itself, with defaults spelt out and no axes, has the same id.
+    let single = r#"
+base = "base.toml"
+[set]
+iterations = 7
+seed = 1
+strategy = { kind = "hybrid", anneal_every = 3 }
+"#;
+    let one = plan(tmp.path(), single).unwrap();
+    assert_eq!(one.runs.len(), 1);
+    assert_eq!(one.runs[0].id, ids[4]);
+    // A changed value is a different run.
+    let other = plan(
+        tmp.path(),
+        &sweep.replace("iterations = 7", "iterations = 8"),
+    )
+    .unwrap();
+    assert!(other.runs.iter().all(|r| !ids.contains(&r.id)));
+}
+
+#[test]
+fn bad_sweeps_are_refused_naming_the_run_and_key() {
+    let tmp = tempfile::tempdir().unwrap();
+    // A value the run config rejects: the message names the run, its labels and the key.
+    let e = err(
+        tmp.path(),
+        "base = \"base.toml\"\n[[axis]]\nkey = \"renderer.sigma\"\nvalues = [1.0, -2.0]\n",
+    );
+    assert!(
+        e.contains("run 1 (renderer.sigma=-2.0)") && e.contains("renderer.sigma"),
+        "{e}"
+    );
+    // An unknown key.
+    let e = err(
+        tmp.path(),
+        "base = \"base.toml\"\n[[axis]]\nkey = \"model.mpas\"\nvalues = [2, 3]\n",
+    );
+    assert!(e.contains("run 0") && e.contains("mpas"), "{e}");
+    // A key below a value that is not a table.
+    let e = err(
+        tmp.path(),
+        "base = \"base.toml\"\n[[axis]]\nkey = \"iterations.x\"\nvalues = [2, 3]\n",
+    );
+    assert!(e.contains("`iterations` is 12, not a table"), "{e}");
+    // An axis that changes nothing: two runs, one config.
+    let e = err(
+        tmp.path(),
+        "base = \"base.toml\"\n[[axis]]\nkey = \"seed\"\nvalues = [0, 0]\nlabels = [\"a\", \"b\"]\n",
+    );
+    assert!(e.contains("resolve to the same config"), "{e}");
+    // Malformed axes and fields of the sweep file itself.
+    for (sweep, expect) in [
+        (
+            "base = \"base.toml\"\n[[axis]]\nkey = \"seed\"\n",
+            "has no values",
+        ),
+        (
+            "base = \"base.toml\"\n[[axis]]\nkey = \"seed\"\nvalues = [1]\nlabels = [\"a\", \"b\"]\n",
+            "2 labels for 1 values",
+        ),
+        (
+            "base = \"base.toml\"\n[[axis]]\nvalues = [1]\n",
+            "needs the `key`",
+        ),
+        ("base = \"base.toml\"\nbogus = 1\n", "bogus"),
+        ("base = \"missing.toml\"\n", "missing.toml"),
+        (
+            "base = \"base.toml\"\n[[axis]]\nkey = \"seed\"\nvalues = [1, 2]\n[[axis]]\nkey = \"seed\"\nvalues = [3]\n",
+            "two axes are called `seed`",
+        ),
+        (
+            "base = \"base.toml\"\n[slurm]\nshards = 0\n",
+            "slurm.shards",
+        ),
+    ] {
+        let e = err(tmp.path(), sweep);
+        assert!(e.contains(expect), "expected `{expect}` in: {e}");
+    }
+    // Bad shards.
+    for bad in ["3/2", "1/0", "x/2", "2"] {
+        assert!(bad.parse::<Shard>().is_err(), "{bad}");
+    }
+}
+
+#[test]
+fn groups_and_folder_axes_expand_to_their_union() {
+    let tmp = tempfile::tempdir().unwrap();
+    let targets = tmp.path().join("targets");
+    std::fs::create_dir(&targets).unwrap();
+    for name in ["b", "a"] {
+        image::GrayImage::from_fn(40, 40, |x, y| {
+            image::Luma([if (x / 5 + y / 5) % 2 == 0 { 255 } else { 0 }])
+        })
+        .save(targets.join(format!("{name}.png")))
+        .unwrap();
+    }
+    std::fs::write(targets.join("notes.txt"), "not an image").unwrap();
+    let sweep = r#"
+base = "base.toml"
+[[axis]]
+key = "seed"
+values = [0, 1]
+[[group]]
+name = "codes"
+[[group.axis]]
+key = "target.code"
+name = "target"
+values = ["sierpinski", "fern"]
+[[group]]
+name = "images"
+set = { target = { code = false } }
+[[group.axis]]
+key = "target.image"
+name = "target"
+folder = "targets"
+"#;
+    // `code = false` is not a code: the override is refused with the run named.
+    let e = err(tmp.path(), sweep);
+    assert!(e.contains("group=images"), "{e}");
+    // Removing the base's code is the base's business: an image group needs a base without one.
+    std::fs::write(
+        tmp.path().join("base.toml"),
+        BASE.replace("code = \"sierpinski\"\n", ""),
+    )
+    .unwrap();
+    let path = tmp.path().join("sweep.toml");
+    std::fs::write(
+        &path,
+        sweep
+            .replace("set = { target = { code = false } }\n", "")
+            .replace(
+                "[[group.axis]]\nkey = \"target.code\"",
+                "set = { \"target.code\" = \"x\" }\n[[group.axis]]\nkey = \"target.code\"",
+            ),
+    )
+    .unwrap();
+    let p = Plan::load(&path).unwrap();
+    assert_eq!(p.axes, ["group", "seed", "target"]);
+    let names: Vec<&str> = p.runs.iter().map(|r| r.name.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "codes-0-sierpinski",
+            "codes-0-fern",
+            "codes-1-sierpinski",
+            "codes-1-fern",
+            "images-0-a",
+            "images-0-b",
+            "images-1-a",
+            "images-1-b"
+        ]
+    );
+    let img = p.runs[4].resolved["target"]["image"].as_str().unwrap();
+    assert!(
+        Path::new(img).is_absolute() && img.ends_with("a.png"),
+        "{img}"
+    );
+    // Shards split the sweep: every run in exactly one shard.
+    for n in 1..=5 {
+        let mut seen = vec![0; p.runs.len()];
+        for i in 0..n {
+            let s = Shard::new(i, n).unwrap();
+            for r in p.runs.iter().filter(|r| s.contains(r.index)) {
+                seen[r.index] += 1;
+            }
+        }
+        assert!(seen.iter().all(|&c| c == 1), "{n} shards: {seen:?}");
+    }
+}
+
+#[test]
+fn runner_skips_finished_redoes_failed_and_collect_merges_shards() {
+    let tmp = tempfile::tempdir().unwrap();
+    let targets = tmp.path().join("targets");
+    std::fs::create_dir(&targets).unwrap();
+    // A white triangle on black.
+    image::GrayImage::from_fn(40, 40, |x, y| {
+        let inside = (8..32).contains(&y) && (x as i32 - 20).abs() <= (y as i32 - 8) / 2;
+        image::Luma([if inside { 255 } else { 0 }])
+    })
+    .save(targets.join("a_good.png"))
+    .unwrap();
+    // A white square on black.
+    image::GrayImage::from_fn(40, 40, |x, y| {
+        let inside = (12..28).contains(&x) && (12..28).contains(&y);
+        image::Luma([if inside { 255 } else { 0 }])
+    })
+    .save(targets.join("c_good.png"))
+    .unwrap();
+    // Passes validation (the file exists) and fails when the run reads it.
+    std::fs::write(
+        targets.join("b_corrupt.png"),
+        b"\x89PNG\r\n\x1a\nnot really",
+    )
+    .unwrap();
+    std::fs::write(
+        tmp.path().join("base.toml"),
+        BASE.replace("code = \"sierpinski\"\n", ""),
+    )
+    .unwrap();
+    let path = tmp.path().join("sweep.toml");
+    std::fs::write(
+        &path,
+        r#"
+base = "base.toml"
+[[axis]]
+key = "target.image"
+name = "target"
+folder = "targets"
+[[axis]]
+key = "strategy.kind"
+name = "strategy"
+values = ["adam", "cold_hybrid"]
+"#,
+    )
+    .unwrap();
+    let p = Plan::load(&path).unwrap();
+    // Targets a_good, b_corrupt, c_good × strategies adam, cold_hybrid.
+    assert_eq!(p.runs.len(), 6);
+    let out = tmp.path().join("out");
+
+    // Shard 0 of 2: runs 0, 2 (the corrupt target) and 4.
+    let opts = RunnerOptions::new(1, Some(2), Shard::new(0, 2).unwrap()).unwrap();
+    let o = run_sweep(&p, &out, &opts, &Silent, &silent).unwrap();
+    assert_eq!(o.runs.iter().map(|r| r.0).collect::<Vec<_>>(), [0, 2, 4]);
+    assert!(matches!(o.runs[0].1, RunStatus::Finished(_)), "{o:?}");
+    assert!(matches!(o.runs[2].1, RunStatus::Finished(_)), "{o:?}");
+    let fails = o.failures();
+    assert_eq!(fails.len(), 1);
+    assert!(
+        fails[0].1.contains("not a readable image"),
+        "{}",
+        fails[0].1
+    );
+    // The failure left a partial folder with its error, nothing that looks finished.
+    let bad = &p.runs[2].id;
+    assert!(partial_dir(&out, bad).join("error.txt").is_file());
+    assert!(!run_dir(&out, bad).exists());
+
+    // A task that died before its first checkpoint left a half-written folder: the run
+    // starts again from nothing.
+    let killed = &p.runs[1].id;
+    std::fs::create_dir_all(partial_dir(&out, killed)).unwrap();
+    std::fs::write(
+        partial_dir(&out, killed).join("log.csv"),
+        "iter,loss\n0,1\n",
+    )
+    .unwrap();
+
+    // A collect in between sees every state.
+    let c = collect(&out).unwrap();
+    let states: Vec<&str> = c.rows.iter().map(|r| r.state.word()).collect();
+    assert_eq!(
+        states,
+        [
+            "finished",
+            "interrupted",
+            "failed",
+            "missing",
+            "finished",
+            "missing"
+        ]
+    );
+
+    // The whole sweep (2 at a time): finished runs are skipped, the others run, the
+    // corrupt ones fail (again).
+    let first = std::fs::read(run_dir(&out, &p.runs[0].id).join(RECORD_FILE)).unwrap();
+    let opts = RunnerOptions::new(2, Some(1), Shard::ALL).unwrap();
+    let o = run_sweep(&p, &out, &opts, &Silent, &silent).unwrap();
+    let words: Vec<&str> = o
+        .runs
+        .iter()
+        .map(|(_, s)| match s {
+            RunStatus::Skipped => "skipped",
+            RunStatus::Finished(_) => "finished",
+            RunStatus::Failed(_) => "failed",
+            RunStatus::Busy => "busy",
+        })
+        .collect();
+    assert_eq!(
+        words,
+        [
+            "skipped", "finished", "failed", "failed", "skipped", "finished"
+        ]
+    );
+    assert_eq!(
+        first,
+        std::fs::read(run_dir(&out, &p.runs[0].id).join(RECORD_FILE)).unwrap(),
+        "a finished run is not touched"
+    );
+    assert!(!partial_dir(&out, killed).exists());
+    let rec: RunRecord =
+        serde_json::from_slice(&std::fs::read(run_dir(&out, killed).join(RECORD_FILE)).unwrap())
+            .unwrap();
+    assert!(!rec.resumed, "no checkpoint to resume from");
+    assert_eq!(
+        rec.labels[1],
+        ("strategy".to_string(), "cold_hybrid".to_string())
+    );
+
+    // Collect: one row per planned run, the aggregate is the mean of the runs' summaries.
+    let c = collect(&out).unwrap();
+    assert_eq!(c.axes, ["target", "strategy"]);
+    assert_eq!(c.counts(), (4, 2, 0, 0));
+    assert!(matches!(&c.rows[2].state, RunState::Failed(e) if e.contains("not a readable image")));
+    let iou = |k: usize| {
+        summary(&run_dir(&out, &p.runs[k].id))["iou"]
+            .as_f64()
+            .unwrap()
+    };
+    let agg = c.aggregate(&["strategy".to_string()]).unwrap();
+    let m = agg.metrics.iter().position(|m| m == "iou").unwrap();
+    for (g, (a, b)) in [(0, 4), (1, 5)].into_iter().enumerate() {
+        let (_, n, stats) = &agg.groups[g];
+        assert_eq!(*n, 3);
+        let st = stats[m].unwrap();
+        assert_eq!(st.count, 2, "the failed run has no numbers");
+        assert!((st.mean - 0.5 * (iou(a) + iou(b))).abs() < 1e-12);
+        assert!((st.std - (iou(a) - iou(b)).abs() / 2f64.sqrt()).abs() < 1e-12);
+    }
+    assert_eq!(agg.groups[0].0, ["adam"]);
+    assert!(c.aggregate(&["nope".to_string()]).is_err());
+
+    // The report: tables, plots, picture grid.
+    let report_dir = tmp.path().join("report");
+    let opts = ReportOptions {
+        by: vec![
+            vec!["strategy".into()],
+            vec!["target".into(), "strategy".into()],
+        ],
+        ..Default::default()
+    };
+    let report = write_report(&c, &report_dir, &opts).unwrap();
+    let md = std::fs::read_to_string(report).unwrap();
+    assert!(md.contains("6 runs: 4 finished, 2 failed"), "{md}");
+    assert!(md.contains("## By target × strategy"), "{md}");
+    assert!(md.contains("| a_good | cold_hybrid |"), "{md}");
+    for f in [
+        "results.csv",
+        "results.json",
+        "aggregate_strategy.csv",
+        "aggregate_target_strategy.csv",
+        "iou_by_strategy.png",
+        "loss_by_strategy.png",
+        "pictures.png",
+    ] {
+        assert!(report_dir.join(f).is_file(), "{f} missing");
+    }
+    let csv = std::fs::read_to_string(report_dir.join("results.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 7);
+    assert!(
+        csv.lines()
+            .next()
+            .unwrap()
+            .starts_with("id,name,problem,status,target,strategy,")
+    );
+    let bad_metric = ReportOptions {
+        metrics: vec!["nope".into()],
+        ..Default::default()
+    };
+    assert!(write_report(&c, &report_dir, &bad_metric).is_err());
+}
+
+#[test]
+fn a_killed_sweep_resumes_to_the_uninterrupted_result() {
+    let tmp = tempfile::tempdir().unwrap();
+    std::fs::write(
+        tmp.path().join("base.toml"),
+        BASE.replace("iterations = 12", "iterations = 400"),
+    )
+    .unwrap();
+    let sweep = tmp.path().join("sweep.toml");
+    // Two seeds, of which only the second is run (`--only`): runs keep their positions in
+    // the whole sweep.
+    std::fs::write(
+        &sweep,
+        "base = \"base.toml\"\n[set]\nstrategy.kind = \"adam\"\n[[axis]]\nkey = \"seed\"\nvalues = [0, 1]\n",
+    )
+    .unwrap();
+    let s = sweep.to_string_lossy().into_owned();
+    let p = Plan::load(&sweep).unwrap();
+    let id = &p.runs[1].id;
+    let killed: PathBuf = tmp.path().join("killed");
+    let k = killed.to_string_lossy().into_owned();
+
+    // Kill the sweep once its run has written a checkpoint (a node failure, say).
+    let mut child = Command::new(env!("CARGO_BIN_EXE_ifslab"))
+        .args(["sweep", &s, "-o", &k, "--only", "seed=1", "--threads", "2"])
+        .spawn()
+        .unwrap();
+    let ckpt = partial_dir(&killed, id).join("checkpoint.json");
+    let t0 = std::time::Instant::now();
+    while !ckpt.is_file() && t0.elapsed().as_secs() < 300 {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(ckpt.is_file(), "the run wrote no checkpoint");
+    assert!(!run_dir(&killed, id).exists(), "killed before it finished");
+    let (ok, msg) = ifslab(&["sweep", &s, "-o", &k, "--only", "seed=1", "--dry-run"]);
+    assert!(ok && msg.contains("0 finished, 1 interrupted"), "{msg}");
+
+    // Run again on one thread: it resumes from the checkpoint…
+    let (ok, msg) = ifslab(&["sweep", &s, "-o", &k, "--only", "seed=1", "--threads", "1"]);
+    assert!(ok, "{msg}");
+    let rec: RunRecord =
+        serde_json::from_slice(&std::fs::read(run_dir(&killed, id).join(RECORD_FILE)).unwrap())
+            .unwrap();
+    assert!(rec.resumed, "{rec:?}");
+    // …to exactly the result of an uninterrupted run.
+    let whole = tmp.path().join("whole");
+    let w = whole.to_string_lossy().into_owned();
+    let (ok, msg) = ifslab(&["sweep", &s, "-o", &w, "--only", "seed=1"]);
+    assert!(ok, "{msg}");
+    assert_eq!(
+        summary(&run_dir(&killed, id)),
+        summary(&run_dir(&whole, id))
+    );
+    // A third call has nothing to do.
+    let (ok, msg) = ifslab(&["sweep", &s, "-o", &w, "--only", "seed=1"]);
+    assert!(
+        ok && msg.contains("0 finished now, 1 already done"),
+        "{msg}"
+    );
+    // The resolved config of a run, by name.
+    let (ok, msg) = ifslab(&["sweep", &s, "--show", "1"]);
+    assert!(
+        ok && msg.contains("seed = 1") && msg.contains("kind = \"adam\""),
+        "{msg}"
+    );
+}
+
+#[test]
+fn the_slurm_script_runs_one_shard_per_array_task() {
+    let tmp = tempfile::tempdir().unwrap();
+    let sweep = r#"
+name = "my sweep"
+base = "base.toml"
+[[axis]]
+key = "seed"
+values = [0, 1, 2, 3, 4]
+[slurm]
+shards = 2
+max_parallel = 1
+time = "00:10:00"
+cpus_per_task = 3
+mem = "2G"
+partition = "debug"
+extra = ["--constraint=avx2"]
+setup = ["module load rust"]
+"#;
+    let p = plan(tmp.path(), sweep).unwrap();
+    let out = tmp.path().join("out");
+    let script = slurm::write_script(&p, &out, Path::new("/opt/ifslab")).unwrap();
+    let text = std::fs::read_to_string(&script).unwrap();
+    for line in [
+        "#SBATCH --job-name=my_sweep",
+        "#SBATCH --array=0-1%1",
+        "#SBATCH --requeue",
+        "#SBATCH --time=00:10:00",
+        "#SBATCH --cpus-per-task=3",
+        "#SBATCH --mem=2G",
+        "#SBATCH --partition=debug",
+        "#SBATCH --constraint=avx2",
+        "#SBATCH --signal=B:USR1@120",
+        "module load rust",
+        "--shard \"${SLURM_ARRAY_TASK_ID}/2\"",
+        "--threads \"${SLURM_CPUS_PER_TASK:-3}\"",
+        "scontrol requeue",
+    ] {
+        assert!(text.contains(line), "`{line}` missing from:\n{text}");
+    }
+    assert!(text.starts_with("#!/bin/bash\n"));
+    assert!(out.join("sweep.json").is_file());
+    // The script is valid shell.
+    let ok = Command::new("bash")
+        .arg("-n")
+        .arg(&script)
+        .status()
+        .unwrap()
+        .success();
+    assert!(ok, "{text}");
+    // Without shards in the config: one task per run.
+    let p = plan(tmp.path(), &sweep.replace("shards = 2\n", "")).unwrap();
+    assert_eq!(slurm::shard_count(&p), 5);
+    // --submit without --slurm is refused; --slurm alone writes the script.
+    let s = tmp.path().join("sweep.toml").to_string_lossy().into_owned();
+    let o = out.to_string_lossy().into_owned();
+    let (ok, msg) = ifslab(&["sweep", &s, "-o", &o, "--submit"]);
+    assert!(!ok && msg.contains("--slurm"), "{msg}");
+    let (ok, msg) = ifslab(&["sweep", &s, "-o", &o, "--slurm"]);
+    assert!(ok && msg.contains("5 runs in 5 array tasks"), "{msg}");
+    let _ = SweepConfig::load(&tmp.path().join("sweep.toml")).unwrap();
+}
+
+#[test]
+fn the_chaotic_splatting_sweep_is_the_protocol_its_results_ran() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let repro = root.join("paper_repro/chaotic_splatting");
+    let mut p = Plan::load(&repro.join("sweep.toml")).unwrap();
+    assert_eq!(p.runs.len(), 87);
+    // The committed run folders whose recorded configs are runs of the sweep are taken in
+    // as finished runs; the others are named.
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("cs");
+    let r = ifslab_experiments::sweep::local::adopt(&p, &out, &repro.join("results/runs")).unwrap();
+    assert_eq!(r.adopted.len(), 78, "{:?}", r.unmatched);
+    // The `hybrid_variance` runs completed their partial [strategy.annealing] table with the
+    // single-annealing defaults of the time (1 candidate, not the hybrid's 10): not the
+    // sweep's runs.
+    assert_eq!(r.unmatched.len(), 9);
+    assert!(
+        r.unmatched
+            .iter()
+            .all(|(d, _)| d.to_string_lossy().contains("random-hybrid_variance-")),
+        "{:?}",
+        r.unmatched
+    );
+    // Every adopted folder went to the run of the same name.
+    for (i, from) in &r.adopted {
+        assert_eq!(
+            from.file_name().unwrap().to_string_lossy(),
+            p.runs[*i].name,
+            "{}",
+            from.display()
+        );
+    }
+    let c = collect(&out).unwrap();
+    assert_eq!(c.counts(), (78, 0, 0, 9));
+    // A tier of it: --only keeps the runs matching every axis named.
+    p.retain(&[
+        ("group".into(), "em".into()),
+        ("target".into(), "sierpinski".into()),
+        ("target".into(), "fern".into()),
+    ])
+    .unwrap();
+    let names: Vec<&str> = p.runs.iter().map(|r| r.name.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "em-adam-sierpinski-s0",
+            "em-adam-fern-s0",
+            "em-hybrid-sierpinski-s0",
+            "em-hybrid-fern-s0",
+            "em-hybrid_sched-sierpinski-s0",
+            "em-hybrid_sched-fern-s0"
+        ]
+    );
+    assert!(p.clone().retain(&[("nope".into(), "x".into())]).is_err());
+    assert!(p.retain(&[("group".into(), "nope".into())]).is_err());
+}
