@@ -42,6 +42,7 @@ use serde_json::json;
 
 use crate::codes::resolve_code;
 use crate::progress::Progress;
+use crate::runs::config::{PROBLEM_KEY, RunConfig};
 use crate::runs::inversion::CONFIG_FILE;
 use truth::Truth;
 
@@ -364,9 +365,13 @@ impl PointsConfig {
         }
     }
 
-    /// TOML text of the resolved config (without the `problem` key).
+    /// TOML text of the resolved config, `problem = "points"` first: a run folder's
+    /// `config.toml`, which `ifslab run` reads back as the same run.
     pub fn to_toml(&self) -> anyhow::Result<String> {
-        Ok(toml::to_string_pretty(&self.resolved()?)?)
+        Ok(format!(
+            "{PROBLEM_KEY} = \"points\"\n{}",
+            toml::to_string_pretty(&self.resolved()?)?
+        ))
     }
 }
 
@@ -548,10 +553,15 @@ pub fn run(
                 dir.display()
             )
         })?;
-        let stored = PointsConfig::from_toml(&stored, &config_path)?;
+        let RunConfig::Points(stored) = RunConfig::from_toml(&stored, &config_path)? else {
+            bail!(
+                "{} is not the config of a points run",
+                config_path.display()
+            );
+        };
         let same = PointsConfig {
             output: None,
-            ..stored
+            ..*stored
         } == PointsConfig {
             output: None,
             ..resolved.clone()

@@ -29,6 +29,7 @@ use ifslab_strategies::problems::fractal_coding::{
 use serde::{Deserialize, Serialize};
 
 use crate::progress::Progress;
+use crate::runs::config::PROBLEM_KEY;
 use crate::runs::inversion::CONFIG_FILE;
 
 /// A cap on the candidates kept per texel: a whole number ≥ 1, or `"all"` (every candidate
@@ -567,10 +568,11 @@ pub fn run(
         progress.message("a texture run has no checkpoints; running it again from the start");
     }
     let resolved = cfg.resolved()?;
-    ifslab::io::write_atomic(
-        &dir.join(CONFIG_FILE),
-        toml::to_string_pretty(&resolved)?.as_bytes(),
-    )?;
+    let text = format!(
+        "{PROBLEM_KEY} = \"texture\"\n{}",
+        toml::to_string_pretty(&resolved)?
+    );
+    ifslab::io::write_atomic(&dir.join(CONFIG_FILE), text.as_bytes())?;
     let out = dir.join(UPSAMPLED_FILE);
     let settings = cfg.settings();
     let half = || tex.reduce().context("halving the source for the hold-out");
