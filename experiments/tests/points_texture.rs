@@ -347,3 +347,89 @@ fn bad_points_and_texture_configs_name_the_field() {
     );
     assert!(!ok && msg.contains("--runs"), "{msg}");
 }
+
+fn argv(v: &[String]) -> Vec<&str> {
+    v.iter().map(String::as_str).collect()
+}
+
+/// The texture reproduction saves each finished texture; killed after the first and resumed,
+/// it does not redo that texture (its saved timings are kept) and ends with the same tables.
+#[test]
+fn a_killed_texture_repro_resumes_after_its_finished_textures() {
+    let tmp = tempfile::tempdir().unwrap();
+    let data = tmp.path().join("data");
+    std::fs::create_dir_all(&data).unwrap();
+    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/textures");
+    for name in ["brick", "grass", "gravel"] {
+        let img = image::open(shipped.join(format!("{name}.png")))
+            .unwrap()
+            .to_luma8();
+        image::imageops::crop_imm(&img, 64, 64, 128, 128)
+            .to_image()
+            .save(data.join(format!("{name}.png")))
+            .unwrap();
+    }
+    let args = |out: &str| -> Vec<String> {
+        [
+            "texture",
+            "repro",
+            "--data",
+            "data",
+            "--textures",
+            "brick,grass,gravel",
+            "--tables-only",
+            "--skip-ablation",
+            "--out",
+            out,
+        ]
+        .map(String::from)
+        .to_vec()
+    };
+    let (ok, msg) = ifslab_in(tmp.path(), &argv(&args("whole")));
+    assert!(ok, "{msg}");
+
+    let out = tmp.path().join("run");
+    let first = out.join("partial/brick.json");
+    kill_once_written(tmp.path(), &argv(&args("run")), || first.is_file(), &out);
+    assert!(
+        !out.join("tables.md").exists(),
+        "the repro finished before it was killed"
+    );
+    let saved: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&first).unwrap()).unwrap();
+    let mut resume = args("run");
+    resume.push("--resume".into());
+    let (ok, msg) = ifslab_in(tmp.path(), &argv(&resume));
+    assert!(ok, "{msg}");
+    assert!(msg.contains("== brick: done before"), "{msg}");
+    assert!(!out.join("partial").exists());
+
+    let results = |d: &str| -> serde_json::Value {
+        serde_json::from_str(
+            &std::fs::read_to_string(tmp.path().join(d).join("results.json")).unwrap(),
+        )
+        .unwrap()
+    };
+    let (r, w) = (results("run"), results("whole"));
+    // Brick comes from the checkpoint: its measured times are the killed run's.
+    assert_eq!(r["brick"]["codes"], saved["rows"]);
+    // Every texture's scores equal the uninterrupted run's (times aside).
+    for name in ["brick", "grass", "gravel"] {
+        let scores = |v: &serde_json::Value| -> Vec<(f64, f64, f64)> {
+            v[name]["codes"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|c| {
+                    (
+                        c["psnr_1x"].as_f64().unwrap(),
+                        c["psnr_1x_packed"].as_f64().unwrap(),
+                        c["psnr_holdout_2x"].as_f64().unwrap(),
+                    )
+                })
+                .collect()
+        };
+        assert_eq!(scores(&r), scores(&w), "{name}");
+        assert_eq!(r[name]["baselines"], w[name]["baselines"], "{name}");
+    }
+}

@@ -199,6 +199,33 @@ mod tests {
     }
 
     #[test]
+    fn points_and_texture_configs_resolve_to_tables_that_read_back_the_same() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs");
+        for (name, problem) in [
+            ("points_triangle.toml", "points"),
+            ("points_kitten.toml", "points"),
+            ("texture_brick.toml", "texture"),
+        ] {
+            let c = RunConfig::load(&dir.join(name)).unwrap();
+            assert_eq!(c.problem(), problem);
+            let t = c.to_table().unwrap();
+            assert_eq!(t[PROBLEM_KEY].as_str(), Some(problem));
+            let back = RunConfig::from_table(t.clone(), &dir.join("elsewhere/x.toml")).unwrap();
+            assert_eq!(back.to_table().unwrap(), t, "{name}");
+        }
+        // Every choice is written out: the paper's algorithm resolves to its own choices.
+        let c = RunConfig::from_toml(
+            "problem = \"points\"\ndata = \"ifs:koch\"\npaper = true\n",
+            Path::new("x.toml"),
+        )
+        .unwrap();
+        let t = c.to_table().unwrap();
+        assert_eq!(t["update"].as_str(), Some("outermost"));
+        assert_eq!(t["reorient"].as_integer(), Some(0));
+        assert_eq!(t["recentre"].as_bool(), Some(false));
+    }
+
+    #[test]
     fn unknown_problems_and_fields_are_named() {
         let e = RunConfig::from_toml("problem = \"nope\"\n", Path::new("x.toml")).unwrap_err();
         assert!(format!("{e:#}").contains("unknown problem `nope`"), "{e:#}");
