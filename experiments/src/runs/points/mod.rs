@@ -31,8 +31,6 @@ use std::time::Instant;
 
 use anyhow::{Context, bail};
 use ifslab::chaos::{ChaosGame, generate_nd, mix_seed};
-use ifslab::render::image_io::BitDepth;
-use ifslab::render::{RenderConfig, RenderMode, render};
 use ifslab_strategies::problems::em::{
     ComponentUpdate, EmConfig, EmFit, Event, MStepConfig, PointSet, PreselectBy, ReorientConfig,
     fit,
@@ -711,29 +709,4 @@ fn fit_runs(
         }),
         sweep: Vec::new(),
     })
-}
-
-/// The 512² density render of a 2-D fit, or why there is none.
-fn render_fit(
-    cfg: &PointsConfig,
-    dir: &Path,
-    code: &ifslab::model::IfsCode,
-) -> anyhow::Result<Option<String>> {
-    let maps = code.affine2()?;
-    let probs = code.evaluation_probabilities()?;
-    let rc = RenderConfig {
-        width: 512,
-        height: 512,
-        points: cfg.render_points,
-        mode: RenderMode::Density,
-        seed: cfg.seed,
-        ..RenderConfig::default()
-    };
-    match render(&maps, &probs, &rc, None) {
-        Ok(r) => {
-            r.save_png(&dir.join("render.png"), BitDepth::Eight, true)?;
-            Ok(None)
-        }
-        Err(e) => Ok(Some(format!("render skipped: {e}"))),
-    }
 }

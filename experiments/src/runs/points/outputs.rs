@@ -5,10 +5,13 @@ use std::path::Path;
 use std::time::Instant;
 
 use ifslab::chaos::mix_seed;
+use ifslab::model::IfsCode;
+use ifslab::render::image_io::BitDepth;
+use ifslab::render::{RenderConfig, RenderMode, render};
 use ifslab_strategies::problems::em::{Covariance, EmFit, Gmm, GmmConfig, PointSet};
 use serde_json::json;
 
-use super::{Data, PointsConfig, render_fit};
+use super::{Data, PointsConfig};
 use crate::plot::{Series, line_chart, scatter};
 use crate::progress::Progress;
 
@@ -238,4 +241,25 @@ fn plot_scatter(
         ],
         1,
     )
+}
+
+/// The 512² density render of a 2-D fit, or why there is none.
+fn render_fit(cfg: &PointsConfig, dir: &Path, code: &IfsCode) -> anyhow::Result<Option<String>> {
+    let maps = code.affine2()?;
+    let probs = code.evaluation_probabilities()?;
+    let rc = RenderConfig {
+        width: 512,
+        height: 512,
+        points: cfg.render_points,
+        mode: RenderMode::Density,
+        seed: cfg.seed,
+        ..RenderConfig::default()
+    };
+    match render(&maps, &probs, &rc, None) {
+        Ok(r) => {
+            r.save_png(&dir.join("render.png"), BitDepth::Eight, true)?;
+            Ok(None)
+        }
+        Err(e) => Ok(Some(format!("render skipped: {e}"))),
+    }
 }
