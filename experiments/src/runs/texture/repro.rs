@@ -182,6 +182,7 @@ pub fn run(cfg: &ReproConfig, resume: bool, progress: &dyn Progress) -> anyhow::
     let steps = names.len() * if a.skip_ablation { 1 } else { 2 };
     progress.start("steps", steps as u64);
     let mut done = Vec::new();
+    let mut reused = 0;
     for name in &names {
         let saved = partial.join(format!("{name}.json"));
         if resume
@@ -196,6 +197,7 @@ pub fn run(cfg: &ReproConfig, resume: bool, progress: &dyn Progress) -> anyhow::
             ));
             progress.inc(if a.skip_ablation { 1 } else { 2 });
             done.push(d);
+            reused += 1;
             continue;
         }
         let d = one_texture(a, name, &presets, &variants, progress)?;
@@ -304,10 +306,12 @@ pub fn run(cfg: &ReproConfig, resume: bool, progress: &dyn Progress) -> anyhow::
         Preset::default(),
         a.timing_reps,
         t_all.elapsed().as_secs_f64(),
-        if done.len() < names.len() || !resume {
-            ""
+        if reused == 0 {
+            String::new()
         } else {
-            " (this process; textures done before a resume are not counted)"
+            format!(
+                " (this process; the {reused} texture(s) done before the resume are not counted)"
+            )
         }
     );
     write(&a.out.join("tables.md"), md.as_bytes())?;
