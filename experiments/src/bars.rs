@@ -17,49 +17,82 @@ pub fn bar(len: u64, what: &str) -> ProgressBar {
 }
 
 /// An indicatif bar behind the library's [`Progress`]: `start` gives it its style, its
-/// prefix and its length; counts and messages go straight through.
-pub struct Bar(ProgressBar);
+/// prefix and its length; counts go straight through; messages are the bar's status line,
+/// or with [`Bar::logging`] lines of their own on stderr (what scripts read).
+pub struct Bar {
+    bar: ProgressBar,
+    log_messages: bool,
+}
 
 impl Default for Bar {
     fn default() -> Self {
-        Bar(ProgressBar::hidden())
+        Bar {
+            bar: ProgressBar::hidden(),
+            log_messages: false,
+        }
     }
 }
 
 impl Bar {
     /// Reports into an existing bar (its style and length as they are).
     pub fn of(pb: ProgressBar) -> Self {
-        Bar(pb)
+        Bar {
+            bar: pb,
+            log_messages: false,
+        }
+    }
+
+    /// A bar that prints every message as a line on stderr (above the bar while one is
+    /// drawn, also when stderr is not a terminal).
+    pub fn logging() -> Self {
+        Bar {
+            log_messages: true,
+            ..Bar::default()
+        }
+    }
+
+    /// The bar for a run of `problem`: image inversions report their loss as the status
+    /// line; the other problems report results worth keeping, as lines.
+    pub fn for_problem(problem: &str) -> Self {
+        if problem == "image" {
+            Bar::default()
+        } else {
+            Bar::logging()
+        }
     }
 }
 
 impl Progress for Bar {
     fn start(&self, what: &str, len: u64) {
-        self.0
+        self.bar
             .set_draw_target(indicatif::ProgressDrawTarget::stderr());
-        self.0.set_style(
+        self.bar.set_style(
             ProgressStyle::with_template(
                 "{spinner} {prefix} [{elapsed_precise}] {bar:40} {human_pos}/{human_len} ({per_sec}, eta {eta}) {msg}",
             )
             .expect("valid template"),
         );
-        self.0.set_prefix(what.to_owned());
-        self.0.set_length(len);
-        self.0.set_position(0);
+        self.bar.set_prefix(what.to_owned());
+        self.bar.set_length(len);
+        self.bar.set_position(0);
     }
     fn set_length(&self, len: u64) {
-        self.0.set_length(len);
+        self.bar.set_length(len);
     }
     fn inc(&self, n: u64) {
-        self.0.inc(n);
+        self.bar.inc(n);
     }
     fn set_position(&self, done: u64) {
-        self.0.set_position(done);
+        self.bar.set_position(done);
     }
     fn message(&self, message: &str) {
-        self.0.set_message(message.to_owned());
+        if self.log_messages {
+            self.bar.suspend(|| eprintln!("{message}"));
+        } else {
+            self.bar.set_message(message.to_owned());
+        }
     }
     fn finish(&self) {
-        self.0.finish_and_clear();
+        self.bar.finish_and_clear();
     }
 }

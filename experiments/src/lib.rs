@@ -6,7 +6,15 @@
 //! `src/cmd/`) parses arguments and draws progress bars on top of it; sweeps and other
 //! front ends call the same functions.
 //!
-//! - [`runs::inversion`]: image inversion runs (`ifslab invert`, `ifslab run`, `ifslab demo`);
+//! - [`runs::RunConfig`]: any config `ifslab run` accepts, by its `problem` key, and the one
+//!   call that runs it;
+//! - [`runs::inversion`]: image inversion runs (`ifslab invert`, `ifslab run`, `ifslab demo`),
+//!   checkpointed every `checkpoint_every` iterations;
+//! - [`runs::points`]: point cloud → IFS of similitudes by EM, best-of-N fits and pool
+//!   sweeps (`ifslab fit-points`, `problem = "points"`), each finished fit checkpointed;
+//! - [`runs::texture`]: fractal-coding texture upsampling (`ifslab texture`,
+//!   `problem = "texture"`; one encoding of seconds, not checkpointed) and the paper's tables
+//!   and figures ([`runs::texture::repro`], resumable per texture);
 //! - [`runs::landscape`]: loss landscapes of a run (`ifslab landscape`);
 //! - [`plot`]: line charts, scatter plots and heat maps with a bundled font;
 //! - [`progress`]: the progress callback;

@@ -36,7 +36,8 @@ enum Command {
     Texture(cmd::texture::Args),
     /// Recover an IFS code from an image (differentiable splatting + a strategy).
     Invert(cmd::invert::Args),
-    /// Run the inversion described by a config file.
+    /// Run what a config file describes: an image inversion, a points fit or a texture
+    /// upsampling (its `problem` key).
     Run(cmd::run::Args),
     /// Run the runs of a sweep file: here, as one shard, or as a Slurm job array.
     Sweep(cmd::sweep::Args),

@@ -21,25 +21,36 @@ fn ifslab(args: &[&str]) -> (bool, String) {
 
 #[test]
 fn every_example_config_is_valid() {
+    use ifslab_experiments::runs::RunConfig;
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs");
     let mut n = 0;
+    let mut problems = std::collections::BTreeSet::new();
     for entry in std::fs::read_dir(&dir).unwrap() {
         let path = entry.unwrap().path();
         if path.extension().is_some_and(|e| e == "toml") {
             let cfg =
-                InversionConfig::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-            if let Some(img) = &cfg.target.image {
-                assert!(
-                    img.is_file(),
-                    "{}: target image {} missing",
-                    path.display(),
-                    img.display()
-                );
+                RunConfig::load(&path).unwrap_or_else(|e| panic!("{}: {e:#}", path.display()));
+            // Every file a config names is shipped with the repository.
+            let file = match &cfg {
+                RunConfig::Image(c) => c.target.image.clone(),
+                RunConfig::Points(c) => {
+                    (!c.data.starts_with("ifs:")).then(|| c.data.clone().into())
+                }
+                RunConfig::Texture(c) => Some(c.source.clone()),
+            };
+            if let Some(f) = file {
+                assert!(f.is_file(), "{}: {} missing", path.display(), f.display());
             }
+            problems.insert(cfg.problem());
             n += 1;
         }
     }
     assert!(n >= 4, "expected the example configs, found {n}");
+    assert_eq!(
+        problems.into_iter().collect::<Vec<_>>(),
+        ["image", "points", "texture"],
+        "an example config for every problem"
+    );
 }
 
 #[test]

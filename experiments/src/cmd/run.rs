@@ -12,7 +12,9 @@ pub struct Args {
     /// Output folder (overrides the config's `output`).
     #[arg(short, long)]
     pub output: Option<PathBuf>,
-    /// Continue the run in the output folder from its last checkpoint.
+    /// Continue the run in the output folder from its last checkpoint (image inversions: the
+    /// last checkpointed iteration; points: the finished fits; texture runs have none and
+    /// run again).
     #[arg(long)]
     pub resume: bool,
 }
@@ -20,7 +22,11 @@ pub struct Args {
 pub fn run(a: Args) -> anyhow::Result<()> {
     let cfg = RunConfig::load(&a.config)?;
     let dir = cfg.output_dir(a.output, "out/run");
-    let r = cfg.run(&dir, a.resume, Box::new(crate::bars::Bar::default()))?;
+    let r = cfg.run(
+        &dir,
+        a.resume,
+        Box::new(crate::bars::Bar::for_problem(cfg.problem())),
+    )?;
     println!("{}: {}", dir.display(), r.headline);
     Ok(())
 }

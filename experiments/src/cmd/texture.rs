@@ -9,21 +9,19 @@
 //! `--preset paper|ifslab` picks the settings (the paper's method as published, or this
 //! project's default variant); `--matching`, `--grid`, `--distance`, `--delta-e-max`,
 //! `--max-candidates`, `--passes`, `--coord-storage` … override one choice at a time.
+//! Arguments only: the work is `ifslab_experiments::runs::texture`, whose `TextureConfig`
+//! holds the same settings as a `problem = "texture"` config of `ifslab run`.
 
-mod repro;
-
-use std::path::{Path, PathBuf};
-use std::time::Instant;
-
+use std::path::PathBuf;
 use std::str::FromStr;
 
-use anyhow::{Context, bail};
+use anyhow::bail;
+use ifslab_experiments::runs::texture::{self, CandidateCap, TextureConfig, repro::ReproConfig};
 use ifslab_strategies::problems::fractal_coding::{
-    CoordStorage, DistanceCentre, EncoderConfig, Filter, FractalCode, Matching, Preset, Reduction,
-    RefineConfig, SearchGrid, Texture, decode, encode, levels_for_factor, load_dir, psnr, refine,
-    save_dir, upsample,
+    CoordStorage, DistanceCentre, Filter, Matching, Preset, Reduction, SearchGrid,
 };
-use serde::Serialize;
+
+use crate::bars::Bar;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -39,7 +37,7 @@ pub enum Command {
     /// Upsample by a power of two, from a code folder or straight from an image.
     Upsample(UpsampleArgs),
     /// Reproduce the paper's Table I, Fig. 4–6 and timing comparison.
-    Repro(repro::Args),
+    Repro(ReproArgs),
 }
 
 /// Encoder, refinement and packing settings shared by `encode` and one-shot `upsample`: a
@@ -88,27 +86,12 @@ pub struct EncodeOpts {
     #[arg(long)]
     pub delta_e_max: Option<f32>,
     /// Most candidates kept per texel, or `all` [default: the preset's when refining, else 1].
-    #[arg(long, value_parser = parse_cap)]
+    #[arg(long, value_parser = CandidateCap::from_str)]
     pub max_candidates: Option<CandidateCap>,
     /// Coordinate layout of the packed code: half-signed (the paper's), half-signed-offset
     /// or sign-magnitude [default: the one that holds the grid's codes].
     #[arg(long, value_parser = parse_named::<CoordStorage>)]
     pub coord_storage: Option<CoordStorage>,
-}
-
-/// A cap on the candidates kept per texel; `None` keeps all of Ω.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CandidateCap(pub Option<usize>);
-
-fn parse_cap(s: &str) -> Result<CandidateCap, String> {
-    if s == "all" {
-        return Ok(CandidateCap(None));
-    }
-    s.parse::<usize>()
-        .ok()
-        .filter(|&n| n > 0)
-        .map(|n| CandidateCap(Some(n)))
-        .ok_or_else(|| format!("`{s}` is neither `all` nor a whole number ≥ 1"))
 }
 
 /// Parses a named setting (preset, matching, grid, …) with the library's message.
@@ -117,84 +100,26 @@ pub fn parse_named<T: FromStr<Err = ifslab_strategies::Error>>(s: &str) -> Resul
         .map_err(|e: ifslab_strategies::Error| e.to_string())
 }
 
-/// Resolved settings of one encoding.
-#[derive(Clone, Debug, Serialize)]
-pub struct Settings {
-    /// The preset the settings start from.
-    pub preset: Preset,
-    /// Encoder settings.
-    pub encoder: EncoderConfig,
-    /// Refinement settings (0 passes: none).
-    pub refine: RefineConfig,
-    /// Packed coordinate layout.
-    pub coord_storage: CoordStorage,
-}
-
-impl Settings {
-    /// Refuses, before encoding, a coordinate layout that cannot hold the grid's codes.
-    pub fn check_storage(&self) -> anyhow::Result<()> {
-        let (storage, grid) = (self.coord_storage, self.encoder.grid);
-        if storage == CoordStorage::SignMagnitude {
-            if self.encoder.window > 255 {
-                bail!(
-                    "the sign-magnitude coordinate layout holds relative coordinates up to ±255; \
-                     use --window 255 or less"
-                );
-            }
-        } else if storage != CoordStorage::for_grid(grid) {
-            let fits = match CoordStorage::for_grid(grid) {
-                CoordStorage::SignMagnitude => "sign-magnitude".to_string(),
-                other => format!("{other} or sign-magnitude"),
-            };
-            bail!(
-                "the {storage} coordinate layout holds codes of grid `{}` only, not `{grid}`; \
-                 use --coord-storage {fits}",
-                match storage {
-                    CoordStorage::HalfSignedOffset => SearchGrid::EvenOffset,
-                    _ => SearchGrid::Even,
-                },
-            );
-        }
-        Ok(())
-    }
-}
-
 impl EncodeOpts {
-    /// The resolved encoder, refinement and packing settings.
-    pub fn settings(&self) -> Settings {
-        let passes = self.passes.unwrap_or(self.preset.refine().passes);
-        let mut enc = self.preset.encoder(passes > 0);
-        if let Some(v) = self.reduction {
-            enc.reduction = v;
-        }
-        if let Some(v) = self.window {
-            enc.window = v;
-        }
-        if let Some(v) = self.matching {
-            enc.matching = v;
-        }
-        if let Some(v) = self.grid {
-            enc.grid = v;
-        }
-        if let Some(v) = self.distance {
-            enc.distance = v;
-        }
-        if let Some(v) = self.beta {
-            enc.beta = v;
-        }
-        if let Some(v) = self.delta_e_max {
-            enc.delta_e_max = v;
-        }
-        if let Some(v) = self.max_candidates {
-            enc.max_candidates = v.0;
-        }
-        Settings {
+    /// The texture config of `source` with these settings.
+    fn config(&self, source: PathBuf, factor: u32, filter: Option<Filter>) -> TextureConfig {
+        TextureConfig {
+            source,
+            factor,
+            filter,
+            grey: self.grey,
             preset: self.preset,
-            coord_storage: self
-                .coord_storage
-                .unwrap_or(CoordStorage::for_grid(enc.grid)),
-            encoder: enc,
-            refine: RefineConfig { passes },
+            passes: self.passes,
+            reduction: self.reduction,
+            window: self.window,
+            matching: self.matching,
+            grid: self.grid,
+            distance: self.distance,
+            beta: self.beta,
+            delta_e_max: self.delta_e_max,
+            max_candidates: self.max_candidates,
+            coord_storage: self.coord_storage,
+            ..TextureConfig::default()
         }
     }
 }
@@ -228,131 +153,63 @@ pub struct UpsampleArgs {
     pub opts: EncodeOpts,
 }
 
+#[derive(clap::Args, Debug)]
+pub struct ReproArgs {
+    /// Output folder (tables, figures, results.json).
+    #[arg(short, long, default_value = "paper_repro/texture_upsampling/results")]
+    pub out: PathBuf,
+    /// Folder with brick.png, grass.png, gravel.png (grey) and wood.png (colour).
+    #[arg(long, default_value = "data/textures")]
+    pub data: PathBuf,
+    /// Only these textures (comma-separated names without .png).
+    #[arg(long, value_delimiter = ',')]
+    pub textures: Option<Vec<String>>,
+    /// Repetitions of each timed decode (the median is reported).
+    #[arg(long, default_value_t = 9)]
+    pub timing_reps: usize,
+    /// Skip figures and timing.
+    #[arg(long)]
+    pub tables_only: bool,
+    /// Skip the one-choice-at-a-time table (the longest part).
+    #[arg(long)]
+    pub skip_ablation: bool,
+    /// Continue an interrupted reproduction in the output folder: the textures it finished
+    /// are not done again.
+    #[arg(long)]
+    pub resume: bool,
+}
+
 pub fn run(a: Args) -> anyhow::Result<()> {
+    let bar = Bar::logging();
     match a.command {
-        Command::Encode(e) => run_encode(e),
-        Command::Upsample(u) => run_upsample(u),
-        Command::Repro(r) => repro::run(r),
-    }
-}
-
-/// Loads a source texture with a message that says what is accepted.
-pub fn load_texture(path: &Path, grey: bool) -> anyhow::Result<Texture> {
-    if !path.exists() {
-        bail!("{} does not exist", path.display());
-    }
-    Texture::load(path, grey).with_context(|| {
-        format!(
-            "reading {} as a texture (PNG or JPEG, grey or colour)",
-            path.display()
-        )
-    })
-}
-
-/// Encodes (and refines) a texture, reporting what it did on stderr.
-pub fn encode_with(
-    tex: &Texture,
-    settings: &Settings,
-) -> anyhow::Result<(FractalCode, serde_json::Value)> {
-    let (enc_cfg, ref_cfg) = (&settings.encoder, &settings.refine);
-    let mut enc = encode(tex, enc_cfg)?;
-    eprintln!(
-        "encoded {}×{}×{} in {:.2} s (preset {}): {} candidates scored, mean collage SSE {:.1}, \
-         {:.2} candidates/texel (most {})",
-        tex.width(),
-        tex.height(),
-        tex.channels(),
-        enc.stats.seconds,
-        settings.preset,
-        enc.stats.candidates_scored,
-        enc.stats.mean_sse,
-        enc.stats.mean_candidates,
-        enc.stats.most_candidates
-    );
-    let mut info = serde_json::to_value(settings)?;
-    info["encode_stats"] = serde_json::to_value(&enc.stats)?;
-    if ref_cfg.passes > 0 {
-        let rep = refine(&mut enc.code, &enc.candidates, ref_cfg)?;
-        eprintln!(
-            "refined in {:.2} s: variance of the Laplacian {:.1} → {:.1}, changes per pass {:?}",
-            rep.seconds,
-            rep.objective[0],
-            rep.objective.last().copied().unwrap_or(f64::NAN),
-            rep.changes
-        );
-        info["refine_report"] = serde_json::to_value(&rep)?;
-    }
-    Ok((enc.code, info))
-}
-
-fn run_encode(a: EncodeArgs) -> anyhow::Result<()> {
-    let tex = load_texture(&a.input, a.opts.grey)?;
-    let settings = a.opts.settings();
-    settings.check_storage()?;
-    let (code, mut info) = encode_with(&tex, &settings)?;
-    info["source"] = a.input.display().to_string().into();
-    let rec = decode(&code, 1)?;
-    let err = save_dir(&code, &a.output, settings.coord_storage, info)
-        .with_context(|| format!("writing the code folder {}", a.output.display()))?;
-    let (packed, _) = load_dir(&a.output)?;
-    let rec_packed = decode(&packed, 1)?;
-    eprintln!(
-        "{}: offset step {} (largest offset change {}); 1× reconstruction PSNR {:.2} dB ({:.2} dB from the packed code)",
-        a.output.display(),
-        err.offset_step,
-        err.max_offset_error,
-        psnr(&rec, &tex)?,
-        psnr(&rec_packed, &tex)?
-    );
-    Ok(())
-}
-
-fn run_upsample(a: UpsampleArgs) -> anyhow::Result<()> {
-    levels_for_factor(a.factor)?;
-    if a.input.is_dir() {
-        if a.filter.is_some() {
-            bail!("--filter needs an image input, not a code folder");
+        Command::Encode(e) => {
+            let cfg = e.opts.config(e.input, 1, None);
+            texture::encode_to_dir(&cfg, &e.output, &bar)?;
         }
-        let (code, _) = load_dir(&a.input)?;
-        return decode_and_save(&code, a.factor, &a.output);
+        Command::Upsample(u) => {
+            let filter = u.filter.as_deref().map(Filter::parse).transpose()?;
+            if u.input.is_dir() {
+                if filter.is_some() {
+                    bail!("--filter needs an image input, not a code folder");
+                }
+                texture::decode_dir_to_file(&u.input, u.factor, &u.output, &bar)?;
+            } else {
+                let cfg = u.opts.config(u.input, u.factor, filter);
+                texture::upsample_to_file(&cfg, &u.output, &bar)?;
+            }
+        }
+        Command::Repro(r) => {
+            let cfg = ReproConfig {
+                out: r.out,
+                data: r.data,
+                textures: r.textures,
+                timing_reps: r.timing_reps,
+                tables_only: r.tables_only,
+                skip_ablation: r.skip_ablation,
+            };
+            let md = texture::repro::run(&cfg, r.resume, &bar)?;
+            eprintln!("{md}");
+        }
     }
-    let tex = load_texture(&a.input, a.opts.grey)?;
-    if let Some(f) = &a.filter {
-        let filter = Filter::parse(f)?;
-        let t0 = Instant::now();
-        let out = upsample(&tex, a.factor, filter)?;
-        out.save_png(&a.output)?;
-        eprintln!(
-            "{}: {}×{} by {} in {:.1} ms",
-            a.output.display(),
-            out.width(),
-            out.height(),
-            filter.name(),
-            t0.elapsed().as_secs_f64() * 1e3
-        );
-        return Ok(());
-    }
-    let (code, _) = encode_with(&tex, &a.opts.settings())?;
-    if a.factor == 1 {
-        let rec = decode(&code, 1)?;
-        eprintln!("1× reconstruction PSNR {:.2} dB", psnr(&rec, &tex)?);
-    }
-    decode_and_save(&code, a.factor, &a.output)
-}
-
-fn decode_and_save(code: &FractalCode, factor: u32, out: &Path) -> anyhow::Result<()> {
-    let t0 = Instant::now();
-    let up = decode(code, factor)?;
-    let secs = t0.elapsed().as_secs_f64();
-    up.save_png(out)?;
-    eprintln!(
-        "{}: {}×{} ({}× the source) decoded in {:.1} ms ({:.1} M texels/s)",
-        out.display(),
-        up.width(),
-        up.height(),
-        factor,
-        secs * 1e3,
-        (up.width() * up.height()) as f64 / secs / 1e6
-    );
     Ok(())
 }

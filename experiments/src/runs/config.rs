@@ -1,5 +1,6 @@
 //! Any run `ifslab run` accepts: one TOML config whose top-level `problem` key says which
-//! problem it describes (`"image"` — the default, so older configs keep working — …), and
+//! problem it describes (`"image"` — the default, so older configs keep working —,
+//! `"points"` or `"texture"`), and
 //! one call that turns it into a run folder. The command line, the sweeps and any other front
 //! end go through [`RunConfig::run`].
 
@@ -11,6 +12,8 @@ use serde::Serialize;
 
 use crate::progress::Progress;
 use crate::runs::inversion;
+use crate::runs::points::{self, PointsConfig};
+use crate::runs::texture::{self, TextureConfig};
 
 /// The config key that names the problem a config describes.
 pub const PROBLEM_KEY: &str = "problem";
@@ -23,6 +26,10 @@ pub const DEFAULT_PROBLEM: &str = "image";
 pub enum RunConfig {
     /// Image → IFS code by differentiable splatting (`problem = "image"`).
     Image(Box<InversionConfig>),
+    /// Point cloud → IFS of similitudes by EM (`problem = "points"`).
+    Points(Box<PointsConfig>),
+    /// Fractal-coding texture upsampling (`problem = "texture"`).
+    Texture(Box<TextureConfig>),
 }
 
 /// What every run reports when it ends: a one-line headline for people and the
@@ -39,7 +46,7 @@ pub struct RunReport {
 
 impl RunConfig {
     /// The problems a config can name, in the order the help text lists them.
-    pub const PROBLEMS: &'static [&'static str] = &["image"];
+    pub const PROBLEMS: &'static [&'static str] = &["image", "points", "texture"];
 
     /// A config from a parsed TOML table; `origin` (the file it came from) names it in
     /// errors and relative file names in it are read from its folder.
@@ -59,6 +66,14 @@ impl RunConfig {
             "image" => {
                 let cfg = InversionConfig::from_toml(&text, origin)?.relative_to(dir);
                 Ok(RunConfig::Image(Box::new(cfg)))
+            }
+            "points" => {
+                let cfg = PointsConfig::from_toml(&text, origin)?.relative_to(dir);
+                Ok(RunConfig::Points(Box::new(cfg)))
+            }
+            "texture" => {
+                let cfg = TextureConfig::from_toml(&text, origin)?.relative_to(dir);
+                Ok(RunConfig::Texture(Box::new(cfg)))
             }
             other => bail!(
                 "{}: unknown problem `{other}` (known: {})",
@@ -87,6 +102,8 @@ impl RunConfig {
     pub fn problem(&self) -> &'static str {
         match self {
             RunConfig::Image(_) => "image",
+            RunConfig::Points(_) => "points",
+            RunConfig::Texture(_) => "texture",
         }
     }
 
@@ -96,6 +113,8 @@ impl RunConfig {
     pub fn to_table(&self) -> anyhow::Result<toml::Table> {
         let body = match self {
             RunConfig::Image(c) => toml::Table::try_from(c.with_absolute_paths()?)?,
+            RunConfig::Points(c) => toml::Table::try_from(c.resolved()?)?,
+            RunConfig::Texture(c) => toml::Table::try_from(c.resolved()?)?,
         };
         let mut t = toml::Table::new();
         t.insert(PROBLEM_KEY.into(), self.problem().into());
@@ -107,6 +126,8 @@ impl RunConfig {
     pub fn output(&self) -> Option<&Path> {
         match self {
             RunConfig::Image(c) => c.output.as_deref(),
+            RunConfig::Points(c) => c.output.as_deref(),
+            RunConfig::Texture(c) => c.output.as_deref(),
         }
     }
 
@@ -130,6 +151,22 @@ impl RunConfig {
                         s.seconds,
                         s.scores()
                     ),
+                    summary: serde_json::to_value(&s)?,
+                })
+            }
+            RunConfig::Points(cfg) => {
+                let s = points::run(cfg, dir, resume, progress)?;
+                Ok(RunReport {
+                    problem: self.problem().into(),
+                    headline: s.headline(),
+                    summary: serde_json::to_value(&s)?,
+                })
+            }
+            RunConfig::Texture(cfg) => {
+                let s = texture::run(cfg, dir, resume, progress)?;
+                Ok(RunReport {
+                    problem: self.problem().into(),
+                    headline: s.headline(),
                     summary: serde_json::to_value(&s)?,
                 })
             }
@@ -159,6 +196,33 @@ mod tests {
         // The resolved table reads back as the same config.
         let back = RunConfig::from_table(t, Path::new("x.toml")).unwrap();
         assert_eq!(back, c);
+    }
+
+    #[test]
+    fn points_and_texture_configs_resolve_to_tables_that_read_back_the_same() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs");
+        for (name, problem) in [
+            ("points_triangle.toml", "points"),
+            ("points_kitten.toml", "points"),
+            ("texture_brick.toml", "texture"),
+        ] {
+            let c = RunConfig::load(&dir.join(name)).unwrap();
+            assert_eq!(c.problem(), problem);
+            let t = c.to_table().unwrap();
+            assert_eq!(t[PROBLEM_KEY].as_str(), Some(problem));
+            let back = RunConfig::from_table(t.clone(), &dir.join("elsewhere/x.toml")).unwrap();
+            assert_eq!(back.to_table().unwrap(), t, "{name}");
+        }
+        // Every choice is written out: the paper's algorithm resolves to its own choices.
+        let c = RunConfig::from_toml(
+            "problem = \"points\"\ndata = \"ifs:koch\"\npaper = true\n",
+            Path::new("x.toml"),
+        )
+        .unwrap();
+        let t = c.to_table().unwrap();
+        assert_eq!(t["update"].as_str(), Some("outermost"));
+        assert_eq!(t["reorient"].as_integer(), Some(0));
+        assert_eq!(t["recentre"].as_bool(), Some(false));
     }
 
     #[test]

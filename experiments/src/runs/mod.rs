@@ -3,10 +3,16 @@
 //! - [`config`]: [`RunConfig`], any config `ifslab run` accepts (its `problem` key picks the
 //!   problem), and [`RunConfig::run`], the one entry every front end calls;
 //! - [`inversion`]: image inversion runs;
-//! - [`landscape`]: loss landscapes of an image-inversion run folder.
+//! - [`landscape`]: loss landscapes of an image-inversion run folder;
+//! - [`points`]: point cloud → IFS of similitudes by EM, single fits and pool sweeps, each
+//!   finished fit checkpointed;
+//! - [`texture`]: fractal-coding texture upsampling, and the paper's tables and figures
+//!   ([`texture::repro`]).
 
 pub mod config;
 pub mod inversion;
 pub mod landscape;
+pub mod points;
+pub mod texture;
 
 pub use config::{RunConfig, RunReport};

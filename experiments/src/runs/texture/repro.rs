@@ -1,4 +1,4 @@
-//! `ifslab texture repro`: Kominami & Mukai's Table I, Fig. 4–6 and timing comparison on the
+//! The reproduction of Kominami & Mukai's Table I, Fig. 4–6 and timing comparison on the
 //! project's textures, for both presets (`paper`, `ifslab`), written as tables, figures and
 //! `results.json` into one folder.
 //!
@@ -25,31 +25,26 @@ use ifslab_strategies::problems::fractal_coding::{
     Preset, Reduction, RefineConfig, SearchGrid, Texture, bilinear_into, decode, decode_into,
     encode, laplacian_variance, load_dir, output_size, psnr, refine, save_dir, upsample,
 };
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use serde_json::json;
 
-use crate::bars as progress;
-use ifslab_experiments::plot::{Series, line_chart};
+use crate::plot::{Series, line_chart};
+use crate::progress::Progress;
 
-#[derive(clap::Args, Debug)]
-pub struct Args {
+/// What to reproduce, and where.
+#[derive(Clone, Debug, Serialize)]
+pub struct ReproConfig {
     /// Output folder (tables, figures, results.json).
-    #[arg(short, long, default_value = "paper_repro/texture_upsampling/results")]
     pub out: PathBuf,
     /// Folder with brick.png, grass.png, gravel.png (grey) and wood.png (colour).
-    #[arg(long, default_value = "data/textures")]
     pub data: PathBuf,
-    /// Only these textures (comma-separated names without .png).
-    #[arg(long, value_delimiter = ',')]
+    /// Only these textures (names without .png); all four when `None`.
     pub textures: Option<Vec<String>>,
     /// Repetitions of each timed decode (the median is reported).
-    #[arg(long, default_value_t = 9)]
     pub timing_reps: usize,
     /// Skip figures and timing.
-    #[arg(long)]
     pub tables_only: bool,
     /// Skip the one-choice-at-a-time table (the longest part).
-    #[arg(long)]
     pub skip_ablation: bool,
 }
 
@@ -64,7 +59,7 @@ const PAPER_TABLE_I: [(&str, f64); 4] = [
 const PAPER_SISALFLOOR_BASELINES: [(&str, f64); 2] = [("bilinear", 28.46), ("LapSRN", 30.29)];
 
 /// One row of Table I and the hold-out table: one texture, one preset, plain or refined.
-#[derive(Serialize, Debug, Clone)]
+#[derive(Serialize, Deserialize, Debug, Clone)]
 struct CodeRow {
     preset: Preset,
     refined: bool,
@@ -94,7 +89,7 @@ impl CodeRow {
     }
 }
 
-#[derive(Serialize, Debug, Clone)]
+#[derive(Serialize, Deserialize, Debug, Clone)]
 struct BaselineRow {
     filter: String,
     psnr_1x_from_r: f64,
@@ -112,19 +107,19 @@ struct Variant {
     passes: usize,
 }
 
-#[derive(Serialize, Debug, Clone)]
+#[derive(Serialize, Deserialize, Debug, Clone)]
 struct VariantResult {
     texture: String,
     /// Why the setting could not be run (the encoder's refusal), if it could not.
     refused: Option<String>,
-    psnr_1x: f64,
-    mean_sse: f64,
-    mean_candidates: f64,
+    psnr_1x: Option<f64>,
+    mean_sse: Option<f64>,
+    mean_candidates: Option<f64>,
     most_candidates: usize,
     seconds: f64,
 }
 
-#[derive(Serialize, Debug, Clone)]
+#[derive(Serialize, Deserialize, Debug, Clone)]
 struct TimingRow {
     texture: String,
     threads: usize,
@@ -140,8 +135,34 @@ struct TimingRow {
 /// Pass counts shown in Fig. 6.
 const FIG6_PASSES: [usize; 6] = [0, 1, 2, 3, 4, 8];
 
-pub fn run(a: Args) -> anyhow::Result<()> {
+/// What one texture contributed, saved under `partial/` as soon as it is done so that a
+/// reproduction killed part-way continues with the next texture (`resume`).
+#[derive(Serialize, Deserialize, Debug, Clone)]
+struct TextureDone {
+    /// The parts of the config that shape a texture's results; a saved texture made with
+    /// other ones is done again.
+    settings: (bool, bool, usize),
+    name: String,
+    size: [usize; 3],
+    rows: Vec<CodeRow>,
+    baselines: Vec<BaselineRow>,
+    /// The objective per refinement pass of each preset.
+    objectives: Vec<(Preset, Vec<f64>)>,
+    timings: Vec<TimingRow>,
+    /// One result per variant of the one-choice-at-a-time table (empty when skipped).
+    ablation: Vec<VariantResult>,
+}
+
+/// The folder of an output folder that holds finished textures until the reproduction ends.
+pub const PARTIAL_DIR: &str = "partial";
+
+/// Runs the reproduction into `cfg.out`: `tables.md`, `results.json`, the figures and a
+/// packed code of each preset for brick. Textures are the unit of work: each is saved under
+/// `partial/` when done, and with `resume` the saved ones are not done again (their timings
+/// are the ones measured then). Returns the Markdown of `tables.md`.
+pub fn run(cfg: &ReproConfig, resume: bool, progress: &dyn Progress) -> anyhow::Result<String> {
     let t_all = Instant::now();
+    let a = cfg;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let names: Vec<String> = a.textures.clone().unwrap_or_else(|| {
         ["brick", "grass", "gravel", "wood"]
@@ -151,6 +172,39 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     });
     let presets = [Preset::Paper, Preset::Ifslab];
     let variants = ablation_variants();
+    let settings = (a.tables_only, a.skip_ablation, a.timing_reps);
+    let partial = a.out.join(PARTIAL_DIR);
+    if !resume && partial.exists() {
+        std::fs::remove_dir_all(&partial)
+            .with_context(|| format!("removing {}", partial.display()))?;
+    }
+
+    let steps = names.len() * if a.skip_ablation { 1 } else { 2 };
+    progress.start("steps", steps as u64);
+    let mut done = Vec::new();
+    let mut reused = 0;
+    for name in &names {
+        let saved = partial.join(format!("{name}.json"));
+        if resume
+            && let Some(d) = std::fs::read(&saved)
+                .ok()
+                .and_then(|b| serde_json::from_slice::<TextureDone>(&b).ok())
+                .filter(|d| d.settings == settings && d.name == *name)
+        {
+            progress.message(&format!(
+                "== {name}: done before (from {})",
+                saved.display()
+            ));
+            progress.inc(if a.skip_ablation { 1 } else { 2 });
+            done.push(d);
+            reused += 1;
+            continue;
+        }
+        let d = one_texture(a, name, &presets, &variants, progress)?;
+        write(&saved, &serde_json::to_vec(&d)?)?;
+        done.push(d);
+    }
+    progress.finish();
 
     let mut results = serde_json::Map::new();
     let mut table1 = String::new();
@@ -158,208 +212,34 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let mut objective_series: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
     let mut timings: Vec<TimingRow> = Vec::new();
     let mut ablation: Vec<Vec<VariantResult>> = vec![Vec::new(); variants.len()];
-
-    let steps = names.len() * if a.skip_ablation { 1 } else { 2 };
-    let pb = progress::bar(steps as u64, "steps");
-    for name in &names {
-        let path = a.data.join(format!("{name}.png"));
-        let src =
-            Texture::load(&path, false).with_context(|| format!("loading {}", path.display()))?;
-        pb.println(format!(
-            "== {name}: {}×{}×{}",
-            src.width(),
-            src.height(),
-            src.channels()
-        ));
-        let half = src.reduce()?;
-        let quarter = half.reduce()?;
-
-        let mut rows = Vec::new();
-        let mut codes: Vec<(Preset, bool, FractalCode)> = Vec::new();
-        let mut snapshots: Vec<(Preset, Vec<(usize, FractalCode)>)> = Vec::new();
+    for d in &done {
+        append_tables(&mut table1, &mut holdout, d);
         let mut objectives = serde_json::Map::new();
-        for preset in presets {
-            for refined in [false, true] {
-                let cfg = preset.encoder(refined);
-                let passes = if refined { preset.refine().passes } else { 0 };
-                let enc = encode(&src, &cfg)?;
-                let mut code = enc.code.clone();
-                let mut refine_seconds = 0.0;
-                if refined {
-                    // One pass at a time, keeping the snapshots of Fig. 6; the code of the
-                    // preset's pass count is the "refined" row.
-                    let max_passes = passes.max(*FIG6_PASSES.last().expect("passes"));
-                    let mut snaps = vec![(0, code.clone())];
-                    let mut objective = vec![laplacian_variance(&decode(&code, 1)?)];
-                    let mut work = code.clone();
-                    for p in 1..=max_passes {
-                        let rep = refine(&mut work, &enc.candidates, &RefineConfig { passes: 1 })?;
-                        if p <= passes {
-                            refine_seconds += rep.seconds;
-                        }
-                        objective.push(*rep.objective.last().expect("one pass"));
-                        if FIG6_PASSES.contains(&p) {
-                            snaps.push((p, work.clone()));
-                        }
-                        if p == passes {
-                            code = work.clone();
-                        }
-                    }
-                    pb.println(format!(
-                        "   {preset}: Ω {:.1}/texel (most {}), encode {:.2} s; objective per pass {:?}",
-                        enc.stats.mean_candidates,
-                        enc.stats.most_candidates,
-                        enc.stats.seconds,
-                        objective
-                            .iter()
-                            .map(|v| format!("{v:.1}"))
-                            .collect::<Vec<_>>()
-                    ));
-                    objective_series.push((
-                        format!("{name} {preset}"),
-                        objective
-                            .iter()
-                            .enumerate()
-                            .map(|(i, &v)| (i as f64, v / objective[0]))
-                            .collect(),
-                    ));
-                    objectives.insert(preset.name().into(), json!(objective));
-                    snapshots.push((preset, snaps));
-                }
-                let storage = preset.coord_storage();
-                let rec = decode(&code, 1)?;
-                let label = format!(
-                    "{name}-{preset}-{}",
-                    if refined { "refined" } else { "plain" }
-                );
-                let dir = a.out.join("codes").join(&label);
-                let err = save_dir(
-                    &code,
-                    &dir,
-                    storage,
-                    json!({"texture": name, "preset": preset, "encoder": cfg, "passes": passes}),
-                )?;
-                let (packed, _) = load_dir(&dir)?;
-                anyhow::ensure!(
-                    packed.coords() == code.coords(),
-                    "the packed coordinates of {label} did not round-trip"
-                );
-                let rec_packed = decode(&packed, 1)?;
-                if name != "brick" {
-                    // Keep one example of the packed files in the results, not all of them.
-                    std::fs::remove_dir_all(&dir).ok();
-                }
-                let ho = holdout_psnr(&src, &half, &quarter, &cfg, passes)?;
-                rows.push(CodeRow {
-                    preset,
-                    refined,
-                    encoder: cfg.clone(),
-                    passes,
-                    coord_storage: storage,
-                    encode_seconds: enc.stats.seconds,
-                    refine_seconds,
-                    mean_sse: collage_sse(&src, &code),
-                    stats: enc.stats.clone(),
-                    psnr_1x: psnr(&rec, &src)?,
-                    psnr_1x_packed: psnr(&rec_packed, &src)?,
-                    offset_step: err.offset_step,
-                    objective_t1: laplacian_variance(&rec),
-                    lapvar_8x: laplacian_variance(&decode(&code, 8)?),
-                    psnr_holdout_2x: ho.0,
-                    psnr_holdout_4x: ho.1,
-                });
-                codes.push((preset, refined, code));
-            }
-        }
-        let reduced = codes[0].2.reduced().clone();
-        let mut base_rows = Vec::new();
-        for f in [Filter::Bilinear, Filter::Bicubic, Filter::Lanczos] {
-            base_rows.push(BaselineRow {
-                filter: f.name().into(),
-                psnr_1x_from_r: psnr(&upsample(&reduced, 2, f)?, &src)?,
-                psnr_holdout_2x: psnr(&upsample(&half, 2, f)?, &src)?,
-                psnr_holdout_4x: psnr(&upsample(&quarter, 4, f)?, &src)?,
-                lapvar_8x: laplacian_variance(&upsample(&src, 8, f)?),
-            });
-        }
-        append_tables(&mut table1, &mut holdout, name, &src, &rows, &base_rows);
-        for r in &rows {
-            pb.println(format!(
-                "   {:<18} 1× {:.2} dB (packed {:.2}), hold-out 2× {:.2} dB",
-                r.label(),
-                r.psnr_1x,
-                r.psnr_1x_packed,
-                r.psnr_holdout_2x
+        for (preset, objective) in &d.objectives {
+            objective_series.push((
+                format!("{} {preset}", d.name),
+                objective
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &v)| (i as f64, v / objective[0]))
+                    .collect(),
             ));
+            objectives.insert(preset.name().into(), json!(objective));
         }
-
-        if !a.tables_only {
-            figures(&a.out, name, &src, &codes, &snapshots)?;
-            let default_plain = &codes
-                .iter()
-                .find(|(p, r, _)| *p == Preset::default() && !r)
-                .expect("both presets encoded")
-                .2;
-            for row in timing(name, &src, default_plain, a.timing_reps)? {
-                pb.println(format!(
-                    "   timing ({} thread(s)): fractal {:.1} ms, bilinear {:.1} ms, ratio {:.2}",
-                    row.threads, row.fractal_ms, row.bilinear_ms, row.ratio
-                ));
-                timings.push(row);
-            }
-        }
-        pb.inc(1);
-
-        if !a.skip_ablation {
-            for (v, out) in variants.iter().zip(ablation.iter_mut()) {
-                let t0 = Instant::now();
-                let enc = match encode(&src, &v.encoder) {
-                    Ok(e) => e,
-                    Err(e) => {
-                        pb.println(format!("   {} / {}: refused ({e})", v.group, v.label));
-                        out.push(VariantResult {
-                            texture: name.clone(),
-                            refused: Some(e.to_string()),
-                            psnr_1x: f64::NAN,
-                            mean_sse: f64::NAN,
-                            mean_candidates: f64::NAN,
-                            most_candidates: 0,
-                            seconds: t0.elapsed().as_secs_f64(),
-                        });
-                        continue;
-                    }
-                };
-                let mut code = enc.code;
-                if v.passes > 0 {
-                    refine(
-                        &mut code,
-                        &enc.candidates,
-                        &RefineConfig { passes: v.passes },
-                    )?;
-                }
-                out.push(VariantResult {
-                    texture: name.clone(),
-                    refused: None,
-                    psnr_1x: psnr(&decode(&code, 1)?, &src)?,
-                    mean_sse: collage_sse(&src, &code),
-                    mean_candidates: enc.stats.mean_candidates,
-                    most_candidates: enc.stats.most_candidates,
-                    seconds: t0.elapsed().as_secs_f64(),
-                });
-            }
-            pb.inc(1);
+        timings.extend(d.timings.iter().cloned());
+        for (out, r) in ablation.iter_mut().zip(&d.ablation) {
+            out.push(r.clone());
         }
         results.insert(
-            name.clone(),
+            d.name.clone(),
             json!({
-                "size": [src.width(), src.height(), src.channels()],
-                "codes": rows,
-                "baselines": base_rows,
+                "size": d.size,
+                "codes": d.rows,
+                "baselines": d.baselines,
                 "objective_per_pass": objectives,
             }),
         );
     }
-    pb.finish_and_clear();
 
     if !a.tables_only {
         let series: Vec<Series<'_>> = objective_series
@@ -385,7 +265,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     };
     let timing_md = timing_table(&timings);
     let config = json!({
-        "command": std::env::args().collect::<Vec<_>>().join(" "),
+        "run": a,
         "presets": presets.iter().map(|p| json!({
             "preset": p,
             "encoder_refined": p.encoder(true),
@@ -420,16 +300,223 @@ pub fn run(a: Args) -> anyhow::Result<()> {
          ## One choice at a time — PSNR (dB) of the 1× reconstruction\n\n{ablation_md}\n\
          ## Hold-out upsampling — PSNR (dB) against the real full-size texture\n\n{holdout}\n\
          ## Timing — 8× upsampling ({} preset, plain code), per frame (median of {} runs)\n\n{timing_md}\n\
-         Total run time {:.0} s.\n",
+         Total run time {:.0} s{}.\n",
         serde_json::to_string(&config)?,
         paper_table(),
         Preset::default(),
         a.timing_reps,
-        t_all.elapsed().as_secs_f64()
+        t_all.elapsed().as_secs_f64(),
+        if reused == 0 {
+            String::new()
+        } else {
+            format!(
+                " (this process; the {reused} texture(s) done before the resume are not counted)"
+            )
+        }
     );
     write(&a.out.join("tables.md"), md.as_bytes())?;
-    eprintln!("{md}");
-    Ok(())
+    std::fs::remove_dir_all(&partial).with_context(|| format!("removing {}", partial.display()))?;
+    Ok(md)
+}
+
+/// Everything the reproduction does for one texture: Table I and hold-out rows, figures,
+/// timing and the one-choice-at-a-time results.
+fn one_texture(
+    a: &ReproConfig,
+    name: &str,
+    presets: &[Preset],
+    variants: &[Variant],
+    progress: &dyn Progress,
+) -> anyhow::Result<TextureDone> {
+    let path = a.data.join(format!("{name}.png"));
+    let src = Texture::load(&path, false).with_context(|| format!("loading {}", path.display()))?;
+    progress.message(&format!(
+        "== {name}: {}×{}×{}",
+        src.width(),
+        src.height(),
+        src.channels()
+    ));
+    let half = src.reduce()?;
+    let quarter = half.reduce()?;
+
+    let mut rows = Vec::new();
+    let mut codes: Vec<(Preset, bool, FractalCode)> = Vec::new();
+    let mut snapshots: Vec<(Preset, Vec<(usize, FractalCode)>)> = Vec::new();
+    let mut objectives = Vec::new();
+    for &preset in presets {
+        for refined in [false, true] {
+            let cfg = preset.encoder(refined);
+            let passes = if refined { preset.refine().passes } else { 0 };
+            let enc = encode(&src, &cfg)?;
+            let mut code = enc.code.clone();
+            let mut refine_seconds = 0.0;
+            if refined {
+                // One pass at a time, keeping the snapshots of Fig. 6; the code of the
+                // preset's pass count is the "refined" row.
+                let max_passes = passes.max(*FIG6_PASSES.last().expect("passes"));
+                let mut snaps = vec![(0, code.clone())];
+                let mut objective = vec![laplacian_variance(&decode(&code, 1)?)];
+                let mut work = code.clone();
+                for p in 1..=max_passes {
+                    let rep = refine(&mut work, &enc.candidates, &RefineConfig { passes: 1 })?;
+                    if p <= passes {
+                        refine_seconds += rep.seconds;
+                    }
+                    objective.push(*rep.objective.last().expect("one pass"));
+                    if FIG6_PASSES.contains(&p) {
+                        snaps.push((p, work.clone()));
+                    }
+                    if p == passes {
+                        code = work.clone();
+                    }
+                }
+                progress.message(&format!(
+                    "   {preset}: Ω {:.1}/texel (most {}), encode {:.2} s; objective per pass {:?}",
+                    enc.stats.mean_candidates,
+                    enc.stats.most_candidates,
+                    enc.stats.seconds,
+                    objective
+                        .iter()
+                        .map(|v| format!("{v:.1}"))
+                        .collect::<Vec<_>>()
+                ));
+                objectives.push((preset, objective));
+                snapshots.push((preset, snaps));
+            }
+            let storage = preset.coord_storage();
+            let rec = decode(&code, 1)?;
+            let label = format!(
+                "{name}-{preset}-{}",
+                if refined { "refined" } else { "plain" }
+            );
+            let dir = a.out.join("codes").join(&label);
+            let err = save_dir(
+                &code,
+                &dir,
+                storage,
+                json!({"texture": name, "preset": preset, "encoder": cfg, "passes": passes}),
+            )?;
+            let (packed, _) = load_dir(&dir)?;
+            anyhow::ensure!(
+                packed.coords() == code.coords(),
+                "the packed coordinates of {label} did not round-trip"
+            );
+            let rec_packed = decode(&packed, 1)?;
+            if name != "brick" {
+                // Keep one example of the packed files in the results, not all of them.
+                std::fs::remove_dir_all(&dir).ok();
+            }
+            let ho = holdout_psnr(&src, &half, &quarter, &cfg, passes)?;
+            rows.push(CodeRow {
+                preset,
+                refined,
+                encoder: cfg.clone(),
+                passes,
+                coord_storage: storage,
+                encode_seconds: enc.stats.seconds,
+                refine_seconds,
+                mean_sse: collage_sse(&src, &code),
+                stats: enc.stats.clone(),
+                psnr_1x: psnr(&rec, &src)?,
+                psnr_1x_packed: psnr(&rec_packed, &src)?,
+                offset_step: err.offset_step,
+                objective_t1: laplacian_variance(&rec),
+                lapvar_8x: laplacian_variance(&decode(&code, 8)?),
+                psnr_holdout_2x: ho.0,
+                psnr_holdout_4x: ho.1,
+            });
+            codes.push((preset, refined, code));
+        }
+    }
+    let reduced = codes[0].2.reduced().clone();
+    let mut baselines = Vec::new();
+    for f in [Filter::Bilinear, Filter::Bicubic, Filter::Lanczos] {
+        baselines.push(BaselineRow {
+            filter: f.name().into(),
+            psnr_1x_from_r: psnr(&upsample(&reduced, 2, f)?, &src)?,
+            psnr_holdout_2x: psnr(&upsample(&half, 2, f)?, &src)?,
+            psnr_holdout_4x: psnr(&upsample(&quarter, 4, f)?, &src)?,
+            lapvar_8x: laplacian_variance(&upsample(&src, 8, f)?),
+        });
+    }
+    for r in &rows {
+        progress.message(&format!(
+            "   {:<18} 1× {:.2} dB (packed {:.2}), hold-out 2× {:.2} dB",
+            r.label(),
+            r.psnr_1x,
+            r.psnr_1x_packed,
+            r.psnr_holdout_2x
+        ));
+    }
+
+    let mut timings = Vec::new();
+    if !a.tables_only {
+        figures(&a.out, name, &src, &codes, &snapshots)?;
+        let default_plain = &codes
+            .iter()
+            .find(|(p, r, _)| *p == Preset::default() && !r)
+            .expect("both presets encoded")
+            .2;
+        for row in timing(name, &src, default_plain, a.timing_reps)? {
+            progress.message(&format!(
+                "   timing ({} thread(s)): fractal {:.1} ms, bilinear {:.1} ms, ratio {:.2}",
+                row.threads, row.fractal_ms, row.bilinear_ms, row.ratio
+            ));
+            timings.push(row);
+        }
+    }
+    progress.inc(1);
+
+    let mut ablation = Vec::new();
+    if !a.skip_ablation {
+        for v in variants {
+            let t0 = Instant::now();
+            let enc = match encode(&src, &v.encoder) {
+                Ok(e) => e,
+                Err(e) => {
+                    progress.message(&format!("   {} / {}: refused ({e})", v.group, v.label));
+                    ablation.push(VariantResult {
+                        texture: name.into(),
+                        refused: Some(e.to_string()),
+                        psnr_1x: None,
+                        mean_sse: None,
+                        mean_candidates: None,
+                        most_candidates: 0,
+                        seconds: t0.elapsed().as_secs_f64(),
+                    });
+                    continue;
+                }
+            };
+            let mut code = enc.code;
+            if v.passes > 0 {
+                refine(
+                    &mut code,
+                    &enc.candidates,
+                    &RefineConfig { passes: v.passes },
+                )?;
+            }
+            ablation.push(VariantResult {
+                texture: name.into(),
+                refused: None,
+                psnr_1x: Some(psnr(&decode(&code, 1)?, &src)?),
+                mean_sse: Some(collage_sse(&src, &code)),
+                mean_candidates: Some(enc.stats.mean_candidates),
+                most_candidates: enc.stats.most_candidates,
+                seconds: t0.elapsed().as_secs_f64(),
+            });
+        }
+        progress.inc(1);
+    }
+    Ok(TextureDone {
+        settings: (a.tables_only, a.skip_ablation, a.timing_reps),
+        name: name.into(),
+        size: [src.width(), src.height(), src.channels()],
+        rows,
+        baselines,
+        objectives,
+        timings,
+        ablation,
+    })
 }
 
 /// The settings of the one-choice-at-a-time table: the plain encoder's matching × grid (and
@@ -612,14 +699,8 @@ fn paper_table() -> String {
     s
 }
 
-fn append_tables(
-    table1: &mut String,
-    holdout: &mut String,
-    name: &str,
-    src: &Texture,
-    rows: &[CodeRow],
-    base: &[BaselineRow],
-) {
+fn append_tables(table1: &mut String, holdout: &mut String, d: &TextureDone) {
+    let (name, rows, base) = (&d.name, &d.rows, &d.baselines);
     if table1.is_empty() {
         table1.push_str(
             "| texture | method | PSNR 1× | PSNR 1× (packed 8-bit) | offset step | mean collage SSE | Ω per texel (mean / most) | encode s | refine s |\n|---|---|---|---|---|---|---|---|---|\n",
@@ -630,8 +711,8 @@ fn append_tables(
     }
     let size = format!(
         "{name} {}²{}",
-        src.width(),
-        if src.channels() == 3 { " RGB" } else { "" }
+        d.size[0],
+        if d.size[2] == 3 { " RGB" } else { "" }
     );
     for r in rows {
         table1.push_str(&format!(
@@ -688,13 +769,15 @@ fn ablation_table(names: &[String], variants: &[Variant], res: &[Vec<VariantResu
             if x.refused.is_some() {
                 s.push_str(" Ω too large¹ |");
             } else {
-                s.push_str(&format!(" {:.2} |", x.psnr_1x));
+                s.push_str(&format!(" {:.2} |", x.psnr_1x.unwrap_or(f64::NAN)));
             }
         }
         let first = r.first().filter(|x| x.refused.is_none());
         s.push_str(&format!(
             " {} | {} |\n",
-            first.map_or("—".into(), |x| format!("{:.1}", x.mean_candidates)),
+            first.map_or("—".into(), |x| {
+                format!("{:.1}", x.mean_candidates.unwrap_or(f64::NAN))
+            }),
             first.map_or("—".into(), |x| format!("{:.1}", x.seconds)),
         ));
     }

@@ -1,0 +1,342 @@
+//! The config of a points run: one key per flag of `ifslab fit-points`, validated with
+//! errors that name the key, resolved (files absolute, every choice written out) for the run
+//! folder's `config.toml`, and turned into the EM config of each fit.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, bail};
+use ifslab_strategies::problems::em::{
+    ComponentUpdate, EmConfig, MStepConfig, PreselectBy, ReorientConfig,
+};
+use serde::{Deserialize, Serialize};
+
+use crate::runs::config::PROBLEM_KEY;
+
+/// How pre-selection candidates are trained.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum PreselectSchedule {
+    /// Depths 1, 2, …, `preselect_depth` in turn (ifslab's default).
+    Curriculum,
+    /// Every iteration at `preselect_depth` (the paper).
+    Fixed,
+}
+
+/// A points run: what `ifslab fit-points` takes as flags, one key per flag (`--sweep-pool`
+/// is `sweep_pool`, `--no-recentre` is `recentre = false`). Every default is ifslab's;
+/// `paper = true` runs the paper's algorithm, and then the six choices it fixes
+/// (`preselect_schedule`, `preselect_by`, `reorient`, `reorient_every`, `recentre`,
+/// `update`) may only be left out or given the paper's values.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PointsConfig {
+    /// Point cloud: CSV/text (one point per line) or NumPy `.npy` (N×H), any dimension H;
+    /// or `ifs:NAME` / `ifs:CODE.json` to sample `points` points from a code.
+    pub data: String,
+    /// Points to sample when `data` is `ifs:…`.
+    pub points: usize,
+    /// Number of similitudes K.
+    pub k: usize,
+    /// Maximum code depth D.
+    pub depth: usize,
+    /// Pre-selection pool size (1 = a single random start).
+    pub pool: usize,
+    /// EM iterations at depth D.
+    pub iterations: usize,
+    /// Minibatch size N′ (0 = full batch).
+    pub batch: usize,
+    /// Deepest depth of the pre-selection runs.
+    pub preselect_depth: usize,
+    /// Iterations of each pre-selection run (the paper's 100).
+    pub preselect_iterations: usize,
+    /// How pre-selection candidates are trained [default: curriculum; paper: fixed].
+    pub preselect_schedule: Option<PreselectSchedule>,
+    /// How the pre-selection winner is chosen [default: log-likelihood; paper: mean-depth].
+    pub preselect_by: Option<PreselectBy>,
+    /// Orientations tried per component by the re-orientation search, 0 = off
+    /// [default: 12; paper: 0].
+    pub reorient: Option<usize>,
+    /// Re-orientation search every this many main iterations, 0 = only in pre-selection
+    /// [default: 100; paper: 0].
+    pub reorient_every: Option<usize>,
+    /// Move the base Gaussian to the invariant measure's mean and spread before the main run
+    /// [default: true; paper: false].
+    pub recentre: Option<bool>,
+    /// Component update rule of the M-step [default: all-positions; paper: outermost].
+    pub update: Option<ComponentUpdate>,
+    /// The paper's algorithm: outermost update, fixed-depth pre-selection by mean depth, no
+    /// re-orientation, no recentring.
+    pub paper: bool,
+    /// Training points that score candidates and re-orientations (0 = all).
+    pub eval_points: usize,
+    /// Independent runs; the one with the best held-out log-likelihood is kept.
+    pub runs: usize,
+    /// Fraction of the points held out for evaluation.
+    pub heldout: f64,
+    /// Evaluate the held-out log-likelihood every this many iterations.
+    pub eval_every: usize,
+    /// Seed (data sampling, split, initialisation, minibatches).
+    pub seed: u64,
+    /// Also write the (sampled or loaded) points here (.csv or .npy).
+    pub save_data: Option<PathBuf>,
+    /// The code that made the data (2-D): each fit's coverage agreement with it and the
+    /// largest difference of the sorted scales are reported.
+    pub truth: Option<String>,
+    /// Gaussian-mixture baselines: component counts (empty: K, and the largest counts with
+    /// no more parameters than the IFS model).
+    pub gmm: Vec<usize>,
+    /// Pool sweep: pre-selection pool sizes to compare (writes `pool_sweep.*` instead of a
+    /// fit); empty: no sweep.
+    pub sweep_pool: Vec<usize>,
+    /// Pool sweep: seeded runs per pool size.
+    pub repeats: usize,
+    /// Points in the render of a 2-D fit.
+    pub render_points: u64,
+    /// The run folder (the command line's `-o` wins).
+    pub output: Option<PathBuf>,
+}
+
+impl Default for PointsConfig {
+    fn default() -> Self {
+        PointsConfig {
+            data: String::new(),
+            points: 20_000,
+            k: 3,
+            depth: 6,
+            pool: 10,
+            iterations: 300,
+            batch: 500,
+            preselect_depth: 3,
+            preselect_iterations: 100,
+            preselect_schedule: None,
+            preselect_by: None,
+            reorient: None,
+            reorient_every: None,
+            recentre: None,
+            update: None,
+            paper: false,
+            eval_points: 1000,
+            runs: 1,
+            heldout: 0.1,
+            eval_every: 10,
+            seed: 0,
+            save_data: None,
+            truth: None,
+            gmm: Vec::new(),
+            sweep_pool: Vec::new(),
+            repeats: 16,
+            render_points: 2_000_000,
+            output: None,
+        }
+    }
+}
+
+/// The six choices `paper = true` fixes, as (schedule, by, reorient, every, recentre, update).
+type Choices = (
+    PreselectSchedule,
+    PreselectBy,
+    usize,
+    usize,
+    bool,
+    ComponentUpdate,
+);
+
+fn choices(paper: bool) -> Choices {
+    let e = if paper {
+        EmConfig::paper()
+    } else {
+        EmConfig::default()
+    };
+    (
+        if e.curriculum {
+            PreselectSchedule::Curriculum
+        } else {
+            PreselectSchedule::Fixed
+        },
+        e.preselect_by,
+        e.reorient.rotations,
+        e.reorient.every,
+        e.recentre,
+        e.mstep.update,
+    )
+}
+
+impl PointsConfig {
+    /// Parses TOML text (without the `problem` key) and validates it; `origin` names the
+    /// text in errors.
+    pub fn from_toml(text: &str, origin: &Path) -> anyhow::Result<Self> {
+        let cfg: PointsConfig = toml::from_str(text)
+            .with_context(|| format!("{} is not a valid points config", origin.display()))?;
+        cfg.validate()
+            .with_context(|| format!("{} is not a valid points config", origin.display()))?;
+        Ok(cfg)
+    }
+
+    /// The same config with its relative file names (point file, `ifs:` code file, truth
+    /// code file, `save_data`) read as relative to `dir`, the folder of its config file.
+    pub fn relative_to(mut self, dir: &Path) -> Self {
+        let file_spec = |spec: &str| -> Option<String> {
+            let p = Path::new(spec);
+            (p.is_relative() && dir.join(p).is_file())
+                .then(|| dir.join(p).to_string_lossy().into_owned())
+        };
+        if let Some(code) = self.data.strip_prefix("ifs:") {
+            if let Some(s) = file_spec(code) {
+                self.data = format!("ifs:{s}");
+            }
+        } else if Path::new(&self.data).is_relative() && !self.data.is_empty() {
+            self.data = dir.join(&self.data).to_string_lossy().into_owned();
+        }
+        if let Some(t) = &self.truth
+            && let Some(s) = file_spec(t)
+        {
+            self.truth = Some(s);
+        }
+        for p in [&mut self.save_data, &mut self.output]
+            .into_iter()
+            .flatten()
+        {
+            if p.is_relative() {
+                *p = dir.join(&*p);
+            }
+        }
+        self
+    }
+
+    /// Every file it names made absolute (against the working directory) and every choice
+    /// written out: what a run folder's `config.toml` holds.
+    pub fn resolved(&self) -> anyhow::Result<Self> {
+        let abs =
+            |p: &Path| std::path::absolute(p).with_context(|| format!("resolving {}", p.display()));
+        let file_spec = |spec: &str| -> anyhow::Result<String> {
+            let p = Path::new(spec);
+            Ok(if p.is_file() {
+                abs(p)?.to_string_lossy().into_owned()
+            } else {
+                spec.to_string()
+            })
+        };
+        let mut c = self.clone();
+        c.data = match self.data.strip_prefix("ifs:") {
+            Some(code) => format!("ifs:{}", file_spec(code)?),
+            None => abs(Path::new(&self.data))?.to_string_lossy().into_owned(),
+        };
+        c.truth = self.truth.as_deref().map(file_spec).transpose()?;
+        c.save_data = self.save_data.as_deref().map(abs).transpose()?;
+        c.output = self.output.as_deref().map(abs).transpose()?;
+        let (s, b, r, e, rc, u) = self.choices();
+        c.preselect_schedule = Some(s);
+        c.preselect_by = Some(b);
+        c.reorient = Some(r);
+        c.reorient_every = Some(e);
+        c.recentre = Some(rc);
+        c.update = Some(u);
+        Ok(c)
+    }
+
+    /// The six choices `paper` fixes, as given or by default.
+    fn choices(&self) -> Choices {
+        let d = choices(self.paper);
+        (
+            self.preselect_schedule.unwrap_or(d.0),
+            self.preselect_by.unwrap_or(d.1),
+            self.reorient.unwrap_or(d.2),
+            self.reorient_every.unwrap_or(d.3),
+            self.recentre.unwrap_or(d.4),
+            self.update.unwrap_or(d.5),
+        )
+    }
+
+    /// Checks every field before anything runs; errors name the field and say what to change.
+    pub fn validate(&self) -> anyhow::Result<()> {
+        if self.data.is_empty() {
+            bail!(
+                "`data` is missing: name a point cloud (.csv, .txt or .npy) or `ifs:NAME` to sample one from a code"
+            );
+        }
+        if self.data.starts_with("ifs:") && self.points == 0 {
+            bail!("`points` must be at least 1 to sample `{}`", self.data);
+        }
+        if self.runs == 0 {
+            bail!("`runs` must be at least 1");
+        }
+        if !(0.0..1.0).contains(&self.heldout) {
+            bail!(
+                "`heldout` is the share of points held out: give a number in [0, 1), got {}",
+                self.heldout
+            );
+        }
+        if !self.sweep_pool.is_empty() {
+            if self.repeats == 0 {
+                bail!("`repeats` must be at least 1");
+            }
+            if let Some(p) = self.sweep_pool.iter().find(|&&p| p == 0) {
+                bail!("`sweep_pool` sizes must be at least 1, got {p}");
+            }
+        }
+        if self.paper {
+            let paper = choices(true);
+            let given = [
+                (
+                    "preselect_schedule",
+                    self.preselect_schedule.map(|v| v != paper.0),
+                ),
+                ("preselect_by", self.preselect_by.map(|v| v != paper.1)),
+                ("reorient", self.reorient.map(|v| v != paper.2)),
+                ("reorient_every", self.reorient_every.map(|v| v != paper.3)),
+                ("recentre", self.recentre.map(|v| v != paper.4)),
+                ("update", self.update.map(|v| v != paper.5)),
+            ];
+            if let Some((name, _)) = given.iter().find(|(_, differs)| *differs == Some(true)) {
+                bail!(
+                    "`{name}` conflicts with `paper = true`, which fixes it to the paper's choice; \
+                     leave `{name}` out or set `paper = false`"
+                );
+            }
+        }
+        for pool in self.sweep_pool.iter().copied().chain([self.pool]) {
+            self.em_config(self.seed, pool).validate()?;
+        }
+        Ok(())
+    }
+
+    /// The EM config of one fit.
+    pub fn em_config(&self, seed: u64, pool: usize) -> EmConfig {
+        let (schedule, by, rotations, every, recentre, update) = self.choices();
+        let base = if self.paper {
+            EmConfig::paper()
+        } else {
+            EmConfig::default()
+        };
+        EmConfig {
+            components: self.k,
+            depth: self.depth,
+            iterations: self.iterations,
+            batch_size: self.batch,
+            pool,
+            preselect_depth: self.preselect_depth,
+            preselect_iterations: self.preselect_iterations,
+            curriculum: schedule == PreselectSchedule::Curriculum,
+            preselect_by: by,
+            reorient: ReorientConfig { rotations, every },
+            recentre,
+            mstep: MStepConfig {
+                update,
+                ..base.mstep.clone()
+            },
+            eval_points: self.eval_points,
+            eval_every: self.eval_every,
+            seed,
+            ..base
+        }
+    }
+
+    /// TOML text of the resolved config, `problem = "points"` first: a run folder's
+    /// `config.toml`, which `ifslab run` reads back as the same run.
+    pub fn to_toml(&self) -> anyhow::Result<String> {
+        Ok(format!(
+            "{PROBLEM_KEY} = \"points\"\n{}",
+            toml::to_string_pretty(&self.resolved()?)?
+        ))
+    }
+}

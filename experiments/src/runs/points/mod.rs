@@ -1,0 +1,382 @@
+//! Point cloud → IFS of similitudes by EM (Bloem & de Rooij), as a run: a [`PointsConfig`]
+//! in, a run folder out.
+//!
+//! A run loads a point cloud (CSV/text or `.npy`, any dimension) or samples one from a code
+//! (`ifs:NAME`), holds out a share of it, and then either
+//! - fits `runs` seeded EM runs and keeps the one with the best held-out log-likelihood,
+//!   writing `code.json`, `history.csv`, `loglik.png`, `scatter.png` (2-D/3-D), `render.png`
+//!   (2-D) and `report.json` with Gaussian-mixture baselines in the same units; or
+//! - with `sweep_pool`, measures the proportion of converged runs per pre-selection pool size
+//!   over `repeats` seeded runs (the paper's Fig. 5b): `pool_sweep.csv/json/png`.
+//!
+//! Both write the resolved `config.toml` and `summary.json`. Every finished fit is
+//! checkpointed under `fits/` ([`fits`]); `resume` continues a killed run with the fits that
+//! are missing and merges exactly what an uninterrupted run would have. A single fit is a few
+//! seconds, so nothing is saved inside EM.
+//!
+//! With a `truth` code (2-D) every fit is also compared with the code that made the data
+//! ([`truth`]).
+//!
+//! ## References
+//! - P. Bloem and S. de Rooij, *An Expectation-Maximization Algorithm for the Fractal
+//!   Inverse Problem*, arXiv:1706.03149, 2017.
+
+mod config;
+pub mod fits;
+mod outputs;
+mod sweep;
+pub mod truth;
+
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::{Context, bail};
+use ifslab::chaos::{ChaosGame, generate_nd, mix_seed};
+use ifslab_strategies::problems::em::{EmFit, Event, PointSet, fit};
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+
+use crate::codes::resolve_code;
+use crate::progress::Progress;
+use crate::runs::config::RunConfig;
+use crate::runs::inversion::CONFIG_FILE;
+pub use config::{PointsConfig, PreselectSchedule};
+use truth::Truth;
+
+/// The data of a run: all points, the training and held-out parts, and where they came from.
+pub struct Data {
+    /// Every point.
+    pub all: PointSet,
+    /// The training points.
+    pub train: PointSet,
+    /// The held-out points (may be empty).
+    pub test: PointSet,
+    /// Where the points came from, in words.
+    pub source: String,
+}
+
+impl Data {
+    /// The held-out points, if any.
+    pub fn heldout(&self) -> Option<&PointSet> {
+        (!self.test.is_empty()).then_some(&self.test)
+    }
+}
+
+/// Loads the config's point cloud or samples it from a code, and splits it.
+pub fn load_data(cfg: &PointsConfig) -> anyhow::Result<Data> {
+    let (all, source) = if let Some(spec) = cfg.data.strip_prefix("ifs:") {
+        let code = resolve_code(spec).with_context(|| format!("`data` {}", cfg.data))?;
+        let probs = code.evaluation_probabilities()?;
+        // Many short trajectories: points close to independent draws from the measure.
+        let per = 50usize;
+        let game = ChaosGame {
+            trajectories: cfg.points.div_ceil(per),
+            length: per + 30,
+            warmup: 30,
+            start_half_width: 1.0,
+            seed: mix_seed(cfg.seed, 0xda7a),
+        };
+        let pts = generate_nd(&game, &code.maps, &probs)?;
+        let all = PointSet::new(code.dim(), pts)?;
+        let src = format!(
+            "{} points sampled from `{spec}` by the chaos game (seed {})",
+            cfg.points, cfg.seed
+        );
+        (all.head(cfg.points), src)
+    } else {
+        let p =
+            PointSet::load(&cfg.data).with_context(|| format!("`data`: reading {}", cfg.data))?;
+        (p, cfg.data.clone())
+    };
+    let (train, test) = all.split(cfg.heldout, cfg.seed)?;
+    if train.len() < cfg.k {
+        bail!(
+            "{} training points (after holding out {}) for k = {}: give at least as many \
+             points as components, or lower `k` / `heldout`",
+            train.len(),
+            test.len(),
+            cfg.k
+        );
+    }
+    Ok(Data {
+        all,
+        train,
+        test,
+        source,
+    })
+}
+
+/// The best fit of a fitting run (not a sweep).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct BestFit {
+    /// Which run it was.
+    pub run: usize,
+    /// Mean held-out log-likelihood per point (nats; on the training points when nothing
+    /// is held out).
+    pub heldout_log_likelihood: f64,
+    /// Mean training log-likelihood per point (nats).
+    pub train_log_likelihood: f64,
+    /// Whether v_D reached the convergence threshold.
+    pub converged: bool,
+    /// Σ d·v_d.
+    pub mean_depth: f64,
+    /// Free parameters of the IFS model.
+    pub parameters: usize,
+    /// Coverage agreement with `truth`, when one was given.
+    pub truth_agreement: Option<f64>,
+    /// The best Gaussian mixture's held-out log-likelihood among the baselines.
+    pub best_gmm_heldout_log_likelihood: Option<f64>,
+}
+
+/// One pool size of a sweep.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct PoolResult {
+    /// Pre-selection pool size.
+    pub pool: usize,
+    /// Runs that converged.
+    pub converged: usize,
+    /// Runs of this pool size.
+    pub repeats: usize,
+    /// `converged / repeats`.
+    pub proportion: f64,
+    /// Median held-out log-likelihood of the runs (nats per point).
+    pub median_heldout_log_likelihood: f64,
+    /// Runs whose coverage agreement with `truth` reached the threshold (with a truth).
+    pub right: Option<usize>,
+    /// Runs both converged and right (with a truth).
+    pub converged_and_right: Option<usize>,
+}
+
+/// What `summary.json` of a points run holds.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct PointsSummary {
+    /// Where the points came from.
+    pub source: String,
+    /// Dimension of the points.
+    pub dim: usize,
+    /// Points, training points, held-out points.
+    pub points: [usize; 3],
+    /// Fits the run is made of.
+    pub fits: usize,
+    /// Of them, fits read from checkpoints of an interrupted run rather than fitted now.
+    pub resumed_fits: usize,
+    /// Fits that failed (a sweep records them and goes on).
+    pub failed_fits: usize,
+    /// Wall-clock seconds of this process.
+    pub seconds: f64,
+    /// The kept fit (a fitting run).
+    pub best: Option<BestFit>,
+    /// Proportion converged per pool size (a sweep).
+    pub sweep: Vec<PoolResult>,
+}
+
+impl PointsSummary {
+    /// A line for the terminal.
+    pub fn headline(&self) -> String {
+        let resumed = if self.resumed_fits > 0 {
+            format!(" ({} from checkpoints)", self.resumed_fits)
+        } else {
+            String::new()
+        };
+        match &self.best {
+            Some(b) => format!(
+                "{} fit(s){resumed} in {:.1} s, best run {}: held-out {:.4} nats/point, {}converged",
+                self.fits,
+                self.seconds,
+                b.run,
+                b.heldout_log_likelihood,
+                if b.converged { "" } else { "not " }
+            ),
+            None => format!(
+                "pool sweep, {} fit(s){resumed} in {:.1} s: {}",
+                self.fits,
+                self.seconds,
+                self.sweep
+                    .iter()
+                    .map(|p| format!("pool {} {}/{}", p.pool, p.converged, p.repeats))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        }
+    }
+}
+
+/// Runs (or with `resume` continues) the points run `cfg` into `dir`, reporting to
+/// `progress`: each fit's iterations (a fitting run) or the finished fits (a sweep) as
+/// counts, and what a person reads as messages, one line each.
+pub fn run(
+    cfg: &PointsConfig,
+    dir: &Path,
+    resume: bool,
+    progress: Box<dyn Progress>,
+) -> anyhow::Result<PointsSummary> {
+    let start = Instant::now();
+    cfg.validate()?;
+    let resolved = cfg.resolved()?;
+    let config_path = dir.join(CONFIG_FILE);
+    if resume {
+        let stored = std::fs::read_to_string(&config_path).with_context(|| {
+            format!(
+                "{} holds no points run to resume (no {CONFIG_FILE})",
+                dir.display()
+            )
+        })?;
+        let RunConfig::Points(stored) = RunConfig::from_toml(&stored, &config_path)? else {
+            bail!(
+                "{} is not the config of a points run",
+                config_path.display()
+            );
+        };
+        let same = PointsConfig {
+            output: None,
+            ..*stored
+        } == PointsConfig {
+            output: None,
+            ..resolved.clone()
+        };
+        anyhow::ensure!(
+            same,
+            "{} describes another run than this config; resume with that config, or start \
+             this one in a new folder",
+            config_path.display()
+        );
+    } else if fits::any(dir) {
+        bail!(
+            "{} holds an unfinished points run ({}/); continue it with --resume or choose another output folder",
+            dir.display(),
+            fits::FITS_DIR
+        );
+    }
+    let data = load_data(cfg)?;
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    if !resume {
+        ifslab::io::write_atomic(&config_path, resolved.to_toml()?.as_bytes())?;
+    }
+    if let Some(p) = &cfg.save_data {
+        data.all.save(p)?;
+    }
+    progress.message(&format!(
+        "{}: {} points in {} dimensions ({} training, {} held out)",
+        data.source,
+        data.all.len(),
+        data.all.dim(),
+        data.train.len(),
+        data.test.len()
+    ));
+    let truth = cfg
+        .truth
+        .as_deref()
+        .map(|t| Truth::load(t, data.all.dim()))
+        .transpose()?;
+    let mut summary = if cfg.sweep_pool.is_empty() {
+        fit_runs(cfg, dir, &data, truth.as_ref(), start, &*progress)?
+    } else {
+        sweep::sweep(cfg, dir, &data, truth.as_ref(), start, &*progress)?
+    };
+    summary.seconds = start.elapsed().as_secs_f64();
+    ifslab::io::write_atomic(
+        &dir.join("summary.json"),
+        serde_json::to_string_pretty(&summary)?.as_bytes(),
+    )?;
+    fits::clear(dir)?;
+    Ok(summary)
+}
+
+/// The label of fitting run `r` under `fits/`.
+fn run_label(r: usize) -> String {
+    format!("run-{r:03}")
+}
+
+/// `runs` seeded EM fits, one after the other; the best held-out likelihood is kept and
+/// written out with the GMM baselines.
+fn fit_runs(
+    cfg: &PointsConfig,
+    dir: &Path,
+    data: &Data,
+    truth: Option<&Truth>,
+    started: Instant,
+    progress: &dyn Progress,
+) -> anyhow::Result<PointsSummary> {
+    let (train, heldout) = (&data.train, data.heldout());
+    let mut runs = Vec::new();
+    let mut best: Option<(f64, usize, EmFit)> = None;
+    let mut resumed = 0;
+    for r in 0..cfg.runs {
+        let em = cfg.em_config(mix_seed(cfg.seed, r as u64), cfg.pool);
+        let label = run_label(r);
+        let (result, secs) = match fits::load(dir, &label, &em)? {
+            Some((fit, secs)) => {
+                resumed += 1;
+                (fit.map_err(anyhow::Error::msg)?, secs)
+            }
+            None => {
+                let t0 = Instant::now();
+                progress.start(
+                    &format!("EM run {}/{}", r + 1, cfg.runs),
+                    em.iterations as u64,
+                );
+                let result = fit(train, heldout, &em, &mut |e| {
+                    if let Event::Iteration(_) = e {
+                        progress.inc(1);
+                    }
+                })
+                .with_context(|| format!("EM run {r}"))?;
+                progress.finish();
+                let secs = t0.elapsed().as_secs_f64();
+                fits::save(dir, &label, &em, &Ok(result.clone()), secs)?;
+                (result, secs)
+            }
+        };
+        let score = result.model.mean_log_likelihood(heldout.unwrap_or(train))?;
+        let train_ll = result.model.mean_log_likelihood(train)?;
+        let against = truth.map(|t| t.compare(&result.model)).transpose()?;
+        progress.message(&format!(
+            "run {r}: held-out {score:.4} nats/point, train {train_ll:.4}, v_D {:.3}, mean depth {:.2}, {}converged{}, {secs:.1} s",
+            result.model.deepest_weight(),
+            result.model.mean_depth(),
+            if result.converged { "" } else { "not " },
+            against.map_or(String::new(), |a| format!(
+                ", agreement with the truth {:.3}, scales within {:.4}",
+                a.agreement, a.scale_error
+            ))
+        ));
+        let repairs = result.degeneracy_counts();
+        runs.push(json!({
+            "truth_agreement": against.map(|a| a.agreement), "truth_scale_error": against.map(|a| a.scale_error),
+            "run": r, "seed": em.seed, "heldout_log_likelihood": score,
+            "train_log_likelihood": train_ll, "converged": result.converged,
+            "deepest_weight": result.model.deepest_weight(), "mean_depth": result.model.mean_depth(),
+            "chosen_candidate": result.chosen, "seconds": secs,
+            "repairs": {"dead_components": repairs[0], "undetermined_rotations": repairs[1],
+                        "clamped_scales": repairs[2], "non_finite": repairs[3]},
+        }));
+        if best.as_ref().is_none_or(|b| score > b.0) {
+            best = Some((score, r, result));
+        }
+    }
+    let (best_score, best_run, result) = best.expect("at least one run");
+    let out = outputs::write_fit(
+        cfg, dir, data, &result, best_score, best_run, runs, started, progress,
+    )?;
+    let against = truth.map(|t| t.compare(&result.model)).transpose()?;
+    Ok(PointsSummary {
+        source: data.source.clone(),
+        dim: data.all.dim(),
+        points: [data.all.len(), data.train.len(), data.test.len()],
+        fits: cfg.runs,
+        resumed_fits: resumed,
+        failed_fits: 0,
+        seconds: 0.0,
+        best: Some(BestFit {
+            run: best_run,
+            heldout_log_likelihood: best_score,
+            train_log_likelihood: result.model.mean_log_likelihood(train)?,
+            converged: result.converged,
+            mean_depth: result.model.mean_depth(),
+            parameters: result.model.parameter_count(),
+            truth_agreement: against.map(|a| a.agreement),
+            best_gmm_heldout_log_likelihood: out.best_gmm,
+        }),
+        sweep: Vec::new(),
+    })
+}
