@@ -4,20 +4,10 @@
 use std::path::Path;
 use std::process::Command;
 
-use ifslab_strategies::problems::image::InversionConfig;
+mod common;
+use common::ifslab;
 
-fn ifslab(args: &[&str]) -> (bool, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_ifslab"))
-        .args(args)
-        .output()
-        .expect("the binary runs");
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    (out.status.success(), text)
-}
+use ifslab_strategies::problems::image::InversionConfig;
 
 #[test]
 fn every_example_config_is_valid() {

@@ -5,6 +5,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+mod common;
+use common::ifslab;
 use ifslab_experiments::progress::{Progress, Silent};
 use ifslab_experiments::sweep::collect::{ReportOptions, RunState, collect, write_report};
 use ifslab_experiments::sweep::local::{RECORD_FILE, RunRecord, partial_dir, run_dir};
@@ -43,19 +45,6 @@ fn err(dir: &Path, sweep: &str) -> String {
 
 fn silent(_: &PlannedRun) -> Box<dyn Progress> {
     Box::new(Silent)
-}
-
-fn ifslab(args: &[&str]) -> (bool, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_ifslab"))
-        .args(args)
-        .output()
-        .expect("the binary runs");
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    (out.status.success(), text)
 }
 
 /// A summary without its wall-time field.
