@@ -40,9 +40,12 @@ pub struct Args {
     /// Side of the (square) target and render in pixels.
     #[arg(long, default_value_t = 128)]
     pub size: usize,
-    /// svd | naive.
+    /// svd | naive (affine maps).
     #[arg(long, default_value = "svd")]
     pub param: String,
+    /// Map family: affine | similitude (see `[model] family` in configs).
+    #[arg(long, default_value = "affine")]
+    pub family: String,
     /// Supersampling of the differentiable renderer.
     #[arg(long, default_value_t = 4)]
     pub supersample: usize,
@@ -158,6 +161,7 @@ fn config_from_flags(a: &Args) -> anyhow::Result<InversionConfig> {
         output: Some(a.output.clone()),
         target,
         model: ModelConfig {
+            family: a.family.clone(),
             maps: a.maps,
             parameterisation,
             init,

@@ -423,8 +423,17 @@ impl InversionConfig {
                 t.size
             )));
         }
-        crate::problems::image::model::find_model(&self.model.family)
-            .map_err(|e| Error::InvalidInput(format!("config field `model.family`: {e}")))?;
+        if crate::problems::image::model::find_model(&self.model.family).is_err() {
+            return Err(Error::InvalidInput(format!(
+                "config field `model.family`: unknown map family `{}` (known: {})",
+                self.model.family,
+                crate::problems::image::model::MODELS
+                    .iter()
+                    .map(|m| m.name)
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )));
+        }
         if !(1..=64).contains(&self.model.maps) {
             return Err(Error::InvalidInput(format!(
                 "config field `model.maps`: must lie in 1..=64, got {}",
