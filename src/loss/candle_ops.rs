@@ -64,16 +64,6 @@ impl<L: ImageLoss> LossOp<L> {
     }
 }
 
-/// `(height, width)` of an image tensor: the last two dimensions, every other one of size 1.
-pub fn image_hw(dims: &[usize]) -> std::result::Result<(usize, usize), String> {
-    match dims {
-        [lead @ .., h, w] if lead.iter().all(|&d| d == 1) => Ok((*h, *w)),
-        _ => Err(format!(
-            "expected an image tensor of shape (H, W) (leading dimensions of size 1 allowed), got {dims:?}"
-        )),
-    }
-}
-
 /// `(channels, height, width)` of an image tensor: `(H, W)` is one channel, `(C, H, W)` holds
 /// `C` planes one after the other (channel-major, as candle stores images); leading dimensions
 /// of size 1 are allowed. A loss on a `C`-channel image is the mean of its per-channel values
