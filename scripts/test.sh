@@ -15,12 +15,15 @@ if ! command -v flam3-render >/dev/null 2>&1 && command -v apt-get >/dev/null 2>
   { $sudo apt-get update -qq && $sudo apt-get install -y -qq flam3-utils libflam3-dev flam3-palette >/dev/null; } \
     || echo "warning: flam3 unavailable; the flam3-render test will fail"
 fi
-cargo test --workspace
+# One optimised build serves the tests and the Slurm test's binary (profile `ci` in Cargo.toml:
+# release with debug assertions and overflow checks; a separate test profile used to compile
+# every dependency a second time).
+cargo test --workspace --profile ci
 # Sweeps on a real (one-node, localhost) Slurm cluster: skipped, loudly, where Slurm cannot
 # be installed or started; never a silent pass.
-cargo build --release -p ifslab-experiments
+cargo build --profile ci -p ifslab-experiments
 status=0
-scripts/slurm_test.sh target/release/ifslab || status=$?
+scripts/slurm_test.sh target/ci/ifslab || status=$?
 if [ "$status" = 77 ]; then
   echo "=================================================================="
   echo "SKIPPED: the Slurm sweep test (scripts/slurm_test.sh; reason above)"
