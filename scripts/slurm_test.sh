@@ -6,7 +6,7 @@
 # have every run once, the cancelled one resumed, and equal a local run of the same sweep
 # (summaries bit for bit, wall-time columns aside). Cleans up after itself.
 #
-#   scripts/slurm_test.sh [path/to/ifslab]      # default: target/release/ifslab (built if missing)
+#   scripts/slurm_test.sh [path/to/ifslab]      # default: target/ci/ifslab (built if missing)
 #
 # Exit status: 0 passed, 77 skipped (Slurm cannot be installed or started here; the reason
 # is printed), anything else failed.
@@ -16,9 +16,9 @@ root="$(pwd)"
 skip() { echo "SLURM TEST SKIPPED: $*" >&2; exit 77; }
 fail() { echo "SLURM TEST FAILED: $*" >&2; exit 1; }
 
-IFSLAB="${1:-$root/target/release/ifslab}"
+IFSLAB="${1:-$root/target/ci/ifslab}"
 if [ ! -x "$IFSLAB" ]; then
-  cargo build --release -p ifslab-experiments
+  cargo build --profile ci -p ifslab-experiments
 fi
 IFSLAB="$(cd "$(dirname "$IFSLAB")" && pwd)/$(basename "$IFSLAB")"
 

@@ -63,9 +63,20 @@ pub struct ModelConfig {
 impl ModelConfig {
     /// The model this config names (its `family`, with its `parameterisation`).
     pub fn build(&self) -> Result<Box<dyn crate::problems::image::AnyModel>> {
-        Ok((crate::problems::image::find_model(&self.family)?.build)(
-            self,
-        ))
+        let entry = crate::problems::image::find_model(&self.family)?;
+        // Only affine maps have parameterisations; a non-default one elsewhere would be
+        // silently ignored, so it is refused.
+        if self.family != "affine"
+            && self.parameterisation != ModelConfig::default().parameterisation
+        {
+            return Err(Error::InvalidInput(format!(
+                "`parameterisation = \"{}\"` applies to affine maps; family `{}` has its own \
+                 (remove the key)",
+                self.parameterisation.build().name(),
+                self.family
+            )));
+        }
+        Ok((entry.build)(self))
     }
 }
 
@@ -496,6 +507,23 @@ mod tests {
     use super::*;
 
     const MINIMAL: &str = "iterations = 10\n[target]\ncode = \"sierpinski\"\n";
+
+    #[test]
+    fn a_parameterisation_is_refused_where_the_family_has_none() {
+        let mut m = ModelConfig {
+            family: "similitude".into(),
+            ..ModelConfig::default()
+        };
+        assert!(m.build().is_ok());
+        m.parameterisation = ParamKind::Naive;
+        let err = m.build().err().unwrap().to_string();
+        assert!(
+            err.contains("parameterisation") && err.contains("similitude"),
+            "{err}"
+        );
+        m.family = "affine".into();
+        assert!(m.build().is_ok());
+    }
 
     #[test]
     fn minimal_config_gets_defaults_and_round_trips() {
