@@ -650,3 +650,56 @@ fn the_chaotic_splatting_sweep_is_the_protocol_its_results_ran() {
     assert!(p.clone().retain(&[("nope".into(), "x".into())]).is_err());
     assert!(p.retain(&[("group".into(), "nope".into())]).is_err());
 }
+
+#[test]
+fn the_ifs_em_sweeps_are_its_committed_results_and_a_rerun_reproduces_one() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let repro = root.join("paper_repro/ifs_em");
+    // The convergence and ablation data come from the independent Python sampler; their
+    // generating codes are the runs' `truth`, so the ids need the files.
+    if !repro.join("data/sampled/random4.csv").is_file() {
+        let st = Command::new("bash")
+            .arg(repro.join("make_data.sh"))
+            .status()
+            .expect("bash runs make_data.sh (it needs python3)");
+        assert!(st.success(), "make_data.sh failed");
+    }
+    for (name, n) in [
+        ("fig5a", 12),
+        ("fig5b", 3),
+        ("three_d", 3),
+        ("convergence", 14),
+        ("ablation", 11),
+    ] {
+        let p = Plan::load(&repro.join(format!("sweeps/{name}.toml"))).unwrap();
+        assert_eq!(p.runs.len(), n, "{name}");
+        // The committed folder is this sweep, every run finished: the README's tables are
+        // collect's over it.
+        let c = collect(&repro.join(format!("results/sweeps/{name}"))).unwrap();
+        assert_eq!(c.counts(), (n, 0, 0, 0), "{name}");
+        let ids: Vec<&str> = c.rows.iter().map(|r| r.id.as_str()).collect();
+        let planned: Vec<&str> = p.runs.iter().map(|r| r.id.as_str()).collect();
+        assert_eq!(
+            ids, planned,
+            "{name}: the committed runs are the sweep's runs"
+        );
+        assert_eq!(c.unplanned, 0, "{name}");
+    }
+    // One run again (Fig. 5a, Koch with K = 2: eight seeded EM fits, a few seconds): the
+    // same numbers as the committed run, wall time aside.
+    let mut p = Plan::load(&repro.join("sweeps/fig5a.toml")).unwrap();
+    p.retain(&[
+        ("group".into(), "all_positions".into()),
+        ("data".into(), "koch-k2".into()),
+    ])
+    .unwrap();
+    assert_eq!(p.runs.len(), 1);
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("f5a");
+    let opts = RunnerOptions::new(1, None, Shard::ALL).unwrap();
+    let o = run_sweep(&p, &out, &opts, &Silent, &silent).unwrap();
+    assert!(o.failures().is_empty(), "{o:?}");
+    let id = &p.runs[0].id;
+    let committed = repro.join("results/sweeps/fig5a/runs").join(id);
+    assert_eq!(summary(&run_dir(&out, id)), summary(&committed));
+}

@@ -239,6 +239,13 @@ fn flatten_json(prefix: &str, v: &Value, out: &mut Map<String, Value>) {
                 flatten_json(&key, x, out);
             }
         }
+        // A list of records (a points run's pool sizes, …): one key per entry and field,
+        // `list.0.field`, so each entry's numbers are metrics; other lists stay one value.
+        Value::Array(items) if !items.is_empty() && items.iter().all(Value::is_object) => {
+            for (i, x) in items.iter().enumerate() {
+                flatten_json(&format!("{prefix}.{i}"), x, out);
+            }
+        }
         other => {
             out.insert(prefix.to_string(), other.clone());
         }
@@ -463,9 +470,9 @@ pub fn fmt_num(x: f64) -> String {
         return x.to_string();
     }
     let a = x.abs();
-    if a == 0.0 {
+    if x == 0.0 {
         "0".into()
-    } else if a >= 1000.0 {
+    } else if a >= 1000.0 || (x.fract() == 0.0 && a < 1e15) {
         format!("{x:.0}")
     } else if a >= 1.0 {
         format!("{x:.3}")
@@ -477,7 +484,8 @@ pub fn fmt_num(x: f64) -> String {
 }
 
 impl Aggregate {
-    /// As a Markdown table: one row per group, `mean ± std (n)` per metric.
+    /// As a Markdown table: one row per group, `mean ± std (n)` per metric (the value
+    /// alone for a group of one run).
     pub fn to_markdown(&self, metrics: &[String]) -> String {
         let idx: Vec<usize> = metrics
             .iter()
@@ -498,7 +506,7 @@ impl Aggregate {
                     Some(st) if st.count > 1 => {
                         format!("{} ± {} ({})", fmt_num(st.mean), fmt_num(st.std), st.count)
                     }
-                    Some(st) => format!("{} (1)", fmt_num(st.mean)),
+                    Some(st) => fmt_num(st.mean),
                 });
             }
             let _ = writeln!(s, "| {} |", cells.join(" | "));
@@ -613,7 +621,7 @@ pub fn write_report(c: &Collected, out: &Path, opts: &ReportOptions) -> anyhow::
         }
     );
     md.push_str("Full tables: [results.csv](results.csv), [results.json](results.json). ");
-    md.push_str("Aggregates are over finished runs: mean ± sample standard deviation (count).\n\n");
+    md.push_str("Aggregates are over finished runs: mean ± sample standard deviation (count); a group of one run shows its value.\n\n");
     for group in &by {
         let agg = c.aggregate(group)?;
         let tag = group.join("+");
@@ -878,4 +886,33 @@ fn picture_grid(c: &Collected, path: &Path, max: usize) -> anyhow::Result<Option
     img.write_to(&mut bytes, image::ImageFormat::Png)?;
     ifslab::io::write_atomic(path, bytes.get_ref())?;
     Ok(path.file_name().map(|f| f.to_string_lossy().into_owned()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    #[test]
+    fn lists_of_records_become_one_metric_per_entry_and_field() {
+        let v = json!({
+            "fits": 8,
+            "best": {"heldout": 1.5, "scales": [0.5, 0.5]},
+            "sweep": [{"pool": 1, "proportion": 0.25}, {"pool": 4, "proportion": 1.0}],
+            "empty": [],
+        });
+        let mut out = Map::new();
+        flatten_json("", &v, &mut out);
+        assert_eq!(out["fits"], json!(8));
+        assert_eq!(out["best.heldout"], json!(1.5));
+        assert_eq!(
+            out["best.scales"],
+            json!([0.5, 0.5]),
+            "a list of numbers stays one value"
+        );
+        assert_eq!(out["sweep.0.pool"], json!(1));
+        assert_eq!(out["sweep.1.proportion"], json!(1.0));
+        assert_eq!(out["empty"], json!([]));
+        assert!(!out.contains_key("sweep"));
+    }
 }

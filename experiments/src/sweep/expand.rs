@@ -196,7 +196,7 @@ impl Plan {
                 })?;
                 let mut resolved = config.to_table()?;
                 resolved.remove(OUTPUT_KEY);
-                let id = run_id(&resolved);
+                let id = run_id(&resolved, &here);
                 if let Some(other) = runs.iter().find(|r| r.id == id) {
                     bail!(
                         "{} and run {} ({}) resolve to the same config (id {id}): an axis value changes nothing",
@@ -316,12 +316,19 @@ impl Plan {
 
 /// The stable id of a resolved run config: the first 16 hex digits of the SHA-256 of its
 /// canonical text (keys sorted, floats in shortest round-trip form), leaving out the
-/// [`OPERATIONAL_KEYS`].
-pub fn run_id(resolved: &toml::Table) -> String {
+/// [`OPERATIONAL_KEYS`]. File names under `sweep_dir` (the sweep file's folder, where its
+/// relative names are read from) are hashed relative to it, so a sweep and its committed
+/// results keep their ids wherever the checkout lies.
+pub fn run_id(resolved: &toml::Table, sweep_dir: &Path) -> String {
     let mut t = resolved.clone();
     for k in OPERATIONAL_KEYS {
         t.remove(*k);
     }
+    let mut prefix = sweep_dir.to_string_lossy().into_owned();
+    if !prefix.ends_with('/') {
+        prefix.push('/');
+    }
+    relative_strings(&mut t, &prefix);
     let mut text = String::from("ifslab-run-v1\n");
     canonical_table(&t, &mut text);
     let digest = Sha256::digest(text.as_bytes());
@@ -329,6 +336,19 @@ pub fn run_id(resolved: &toml::Table) -> String {
         let _ = write!(s, "{b:02x}");
         s
     })
+}
+
+/// Every string holding `prefix` (a folder with its trailing `/`) gets `@sweep/` instead.
+fn relative_strings(t: &mut toml::Table, prefix: &str) {
+    fn walk(v: &mut toml::Value, prefix: &str) {
+        match v {
+            toml::Value::String(s) if s.contains(prefix) => *s = s.replace(prefix, "@sweep/"),
+            toml::Value::Array(a) => a.iter_mut().for_each(|x| walk(x, prefix)),
+            toml::Value::Table(t) => t.iter_mut().for_each(|(_, x)| walk(x, prefix)),
+            _ => {}
+        }
+    }
+    t.iter_mut().for_each(|(_, x)| walk(x, prefix));
 }
 
 fn canonical_table(t: &toml::Table, out: &mut String) {

@@ -326,6 +326,7 @@ pub struct Adopted {
 /// configs (other settings, or defaults that changed since) are left out and listed.
 pub fn adopt(plan: &Plan, out: &Path, from: &Path) -> anyhow::Result<Adopted> {
     write_plan(plan, out)?;
+    let sweep_dir = plan.source.parent().unwrap_or(Path::new("/"));
     let mut dirs: Vec<PathBuf> = std::fs::read_dir(from)
         .with_context(|| format!("reading {}", from.display()))?
         .filter_map(|e| e.ok().map(|e| e.path()))
@@ -343,7 +344,7 @@ pub fn adopt(plan: &Plan, out: &Path, from: &Path) -> anyhow::Result<Adopted> {
             continue;
         }
         let id = match crate::runs::RunConfig::load(&cfg_path).and_then(|c| c.to_table()) {
-            Ok(t) => super::expand::run_id(&t),
+            Ok(t) => super::expand::run_id(&t, sweep_dir),
             Err(e) => {
                 result.unmatched.push((d, format!("{e:#}")));
                 continue;

@@ -126,6 +126,10 @@ pub struct BestFit {
     pub truth_agreement: Option<f64>,
     /// The best Gaussian mixture's held-out log-likelihood among the baselines.
     pub best_gmm_heldout_log_likelihood: Option<f64>,
+    /// Each Gaussian-mixture baseline's held-out log-likelihood, by covariance and
+    /// component count (`isotropic_8`, `full_16`).
+    #[serde(default)]
+    pub gmm: std::collections::BTreeMap<String, f64>,
 }
 
 /// One pool size of a sweep.
@@ -162,6 +166,8 @@ pub struct PointsSummary {
     pub resumed_fits: usize,
     /// Fits that failed (a sweep records them and goes on).
     pub failed_fits: usize,
+    /// Fits whose v_D reached the convergence threshold (of all the run's fits).
+    pub converged_fits: usize,
     /// Wall-clock seconds of this process.
     pub seconds: f64,
     /// The kept fit (a fitting run).
@@ -354,6 +360,10 @@ fn fit_runs(
             best = Some((score, r, result));
         }
     }
+    let converged_fits = runs
+        .iter()
+        .filter(|r| r["converged"] == json!(true))
+        .count();
     let (best_score, best_run, result) = best.expect("at least one run");
     let out = outputs::write_fit(
         cfg, dir, data, &result, best_score, best_run, runs, started, progress,
@@ -366,6 +376,7 @@ fn fit_runs(
         fits: cfg.runs,
         resumed_fits: resumed,
         failed_fits: 0,
+        converged_fits,
         seconds: 0.0,
         best: Some(BestFit {
             run: best_run,
@@ -376,6 +387,7 @@ fn fit_runs(
             parameters: result.model.parameter_count(),
             truth_agreement: against.map(|a| a.agreement),
             best_gmm_heldout_log_likelihood: out.best_gmm,
+            gmm: out.gmm,
         }),
         sweep: Vec::new(),
     })

@@ -19,6 +19,8 @@ use crate::progress::Progress;
 pub(super) struct Written {
     /// The best held-out log-likelihood among the GMM baselines.
     pub best_gmm: Option<f64>,
+    /// Each baseline's held-out log-likelihood by name (`isotropic_8`, `full_16`).
+    pub gmm: std::collections::BTreeMap<String, f64>,
 }
 
 /// Writes the kept fit `result` (run `best_run`, held-out score `best_score`) and its
@@ -61,6 +63,7 @@ pub(super) fn write_fit(
     let em_params = model.parameter_count();
     let mut gmms = Vec::new();
     let mut best_gmm: Option<f64> = None;
+    let mut gmm_by_name = std::collections::BTreeMap::new();
     for (cov, m) in gmm_counts(cfg, data.all.dim(), em_params) {
         if m > train.len() {
             continue;
@@ -84,6 +87,7 @@ pub(super) fn write_fit(
         ));
         if let Some(v) = ho {
             best_gmm = Some(best_gmm.map_or(v, |b| b.max(v)));
+            gmm_by_name.insert(format!("{}_{m}", format!("{cov:?}").to_lowercase()), v);
         }
         gmms.push(json!({
             "covariance": format!("{cov:?}").to_lowercase(), "components": m,
@@ -113,7 +117,10 @@ pub(super) fn write_fit(
         "{}: best run {best_run}, held-out {best_score:.4} nats/point",
         code_path.display(),
     ));
-    Ok(Written { best_gmm })
+    Ok(Written {
+        best_gmm,
+        gmm: gmm_by_name,
+    })
 }
 
 /// Baseline component counts: `gmm` if given, else K and the parameter-matched counts.

@@ -174,6 +174,7 @@ pub(super) fn sweep(
         fits: jobs.len(),
         resumed_fits: resumed,
         failed_fits: failed,
+        converged_fits: pools.iter().map(|p| p.converged).sum(),
         seconds: 0.0,
         best: None,
         sweep: pools,
