@@ -22,6 +22,8 @@ use crate::driver::{Differentiable, GradState, Params, RunSpec};
 use crate::error::{Error, Result};
 use crate::optim::adam::{Adam, AdamConfig};
 use crate::optim::annealing::{Anneal, AnnealingConfig, SimulatedAnnealing};
+use crate::optim::cmaes::{Cmaes, CmaesConfig};
+use crate::optim::evolutionary::{Evolutionary, EvolutionaryConfig};
 use crate::optim::gd::{GdConfig, GradientDescent};
 use crate::optim::hybrid::{ColdHybridConfig, Hybrid, HybridConfig};
 use crate::optim::noisy::{NoisyAdam, NoisyConfig};
@@ -203,6 +205,8 @@ pub fn strategies<P: StrategyProblem>() -> Vec<StrategyEntry<P>> {
         }),
         StrategyEntry::new(|c: NoisyConfig, r| NoisyAdam::new(c, r.seed)),
         StrategyEntry::new(|c: GdConfig, _| GradientDescent::new(c)),
+        StrategyEntry::new(|c: EvolutionaryConfig, r| Evolutionary::new(c, r.iterations, r.seed)),
+        StrategyEntry::new(|c: CmaesConfig, r| Cmaes::new(c, r.iterations, r.seed)),
     ]
 }
 

@@ -460,3 +460,51 @@ fn end_to_end_gradient(family: &str) {
         );
     }
 }
+
+/// The value-only baselines on the image problem: from a perturbed Sierpiński code (naive
+/// parameterisation, 18 numbers) both must raise the IoU (measured: 0.317 → 0.430 and
+/// 0.536 in 40 generations, 640 and 520 renders), scoring codes with the annealing
+/// MSE on each generation's stream. Budgets are in renders (the log's `evals`).
+#[test]
+fn evolutionary_and_cmaes_improve_a_perturbed_code() {
+    use ifslab_strategies::optim::cmaes::CmaesConfig;
+    use ifslab_strategies::optim::evolutionary::EvolutionaryConfig;
+    let size = 48;
+    let t = target("sierpinski", size);
+    let strategies = [
+        StrategyConfig::from(EvolutionaryConfig {
+            population: 8,
+            sigma: 0.02,
+            ..EvolutionaryConfig::default()
+        }),
+        StrategyConfig::from(CmaesConfig {
+            sigma: 0.02,
+            ..CmaesConfig::default()
+        }),
+    ];
+    for strategy in strategies {
+        let name = strategy.name().to_string();
+        let mut cfg = base_config(size, 40, strategy);
+        cfg.model = ModelConfig {
+            maps: 3,
+            parameterisation: ParamKind::Naive,
+            init_code: Some("sierpinski".into()),
+            init_noise: 0.05,
+            ..ModelConfig::default()
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let model = cfg.model.build().unwrap();
+        let start =
+            ifslab_strategies::problems::image::initial_theta(&cfg, model.as_ref(), &t).unwrap();
+        let before = iou_of(&model.affine_maps(&start).unwrap(), &t, size);
+        let out = run_inversion(&cfg, t.clone(), dir.path(), false, vec![]).unwrap();
+        let after = iou_of(&out.maps, &t, size);
+        let log = std::fs::read_to_string(&out.log).unwrap();
+        let evals = log.lines().last().unwrap().to_string();
+        eprintln!("{name}: IoU before {before:.3}, after {after:.3}; last log line {evals}");
+        assert!(
+            after > before + 0.08,
+            "{name}: IoU before {before:.3}, after {after:.3}"
+        );
+    }
+}

@@ -4,6 +4,8 @@
 
 pub mod adam;
 pub mod annealing;
+pub mod cmaes;
+pub mod evolutionary;
 pub mod gd;
 pub mod hybrid;
 pub mod noisy;
