@@ -23,10 +23,12 @@ use crate::error::{Error, Result};
 use crate::optim::adam::{Adam, AdamConfig};
 use crate::optim::annealing::{Anneal, AnnealingConfig, SimulatedAnnealing};
 use crate::optim::cmaes::{Cmaes, CmaesConfig};
+use crate::optim::cuckoo::{Cuckoo, CuckooConfig};
 use crate::optim::evolutionary::{Evolutionary, EvolutionaryConfig};
 use crate::optim::gd::{GdConfig, GradientDescent};
 use crate::optim::hybrid::{ColdHybridConfig, Hybrid, HybridConfig};
 use crate::optim::noisy::{NoisyAdam, NoisyConfig};
+use crate::optim::swarm::{Swarm, SwarmConfig};
 
 /// A problem every registered strategy can run on: a loss with its gradient, and a cheap
 /// cost on a chosen random stream.
@@ -207,6 +209,8 @@ pub fn strategies<P: StrategyProblem>() -> Vec<StrategyEntry<P>> {
         StrategyEntry::new(|c: GdConfig, _| GradientDescent::new(c)),
         StrategyEntry::new(|c: EvolutionaryConfig, r| Evolutionary::new(c, r.iterations, r.seed)),
         StrategyEntry::new(|c: CmaesConfig, r| Cmaes::new(c, r.iterations, r.seed)),
+        StrategyEntry::new(|c: CuckooConfig, r| Cuckoo::new(c, r.iterations, r.seed)),
+        StrategyEntry::new(|c: SwarmConfig, r| Swarm::new(c, r.iterations, r.seed)),
     ]
 }
 

@@ -33,7 +33,8 @@ pub struct Args {
     #[arg(long, default_value_t = 2000)]
     pub iters: u64,
     /// Any registered strategy (hybrid, cold_hybrid, adam, annealing, noisy, gd, and the
-    /// value-only baselines evolutionary and cmaes, one generation per iteration). `hybrid`
+    /// value-only baselines evolutionary, cmaes, cuckoo and swarm: one generation per
+    /// iteration). `hybrid`
     /// from an EM start means `cold_hybrid` (τ₀ 0.02, noise 0.05), from a random one the
     /// paper's (τ₀ 1, noise 0.2).
     #[arg(long, default_value = "hybrid")]

@@ -5,7 +5,9 @@
 pub mod adam;
 pub mod annealing;
 pub mod cmaes;
+pub mod cuckoo;
 pub mod evolutionary;
 pub mod gd;
 pub mod hybrid;
 pub mod noisy;
+pub mod swarm;
