@@ -284,7 +284,10 @@ fn any_registered_strategy_runs_from_a_config() {
     assert_eq!(log.lines().count(), 5, "{log}");
 
     for (strategy, want) in [
-        ("kind = \"cmaes\"\n", "unknown strategy `cmaes`"),
+        (
+            "kind = \"no_such_strategy\"\n",
+            "unknown strategy `no_such_strategy`",
+        ),
         ("kind = \"gd\"\nmomentun = 0.5\n", "momentun"),
     ] {
         std::fs::write(&cfg, format!("{base}[strategy]\n{strategy}")).unwrap();

@@ -11,3 +11,5 @@ pub mod gd;
 pub mod hybrid;
 pub mod noisy;
 pub mod swarm;
+#[cfg(test)]
+pub(crate) mod testing;

@@ -278,7 +278,7 @@ impl<O: Anneal + Differentiable> Solver<O, GradState> for Cmaes {
 mod tests {
     use super::*;
     use crate::driver::Evaluation;
-    use argmin::core::Executor;
+    use crate::optim::testing::run as run_solver;
 
     /// An ill-conditioned, rotated ellipsoid with stream-dependent noise; minimum at `OPT`.
     struct NoisyEllipsoid;
@@ -310,16 +310,11 @@ mod tests {
             sigma: 1.0,
             ..CmaesConfig::default()
         };
-        let solver = Cmaes::new(cfg, iters, seed).unwrap();
-        let res = Executor::new(NoisyEllipsoid, solver)
-            .configure(|s| s.param(vec![0.0; 5]).max_iters(iters))
-            .run()
-            .unwrap();
-        let st = res.state();
-        (
-            st.get_param().unwrap().clone(),
-            st.get_cost(),
-            res.solver().clone(),
+        run_solver(
+            NoisyEllipsoid,
+            Cmaes::new(cfg, iters, seed).unwrap(),
+            vec![0.0; 5],
+            iters,
         )
     }
 

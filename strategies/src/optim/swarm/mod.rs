@@ -216,50 +216,32 @@ impl<O: Anneal + Differentiable> Solver<O, GradState> for Swarm {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::driver::Evaluation;
-    use argmin::core::Executor;
+    use crate::optim::testing::{NoisySphere, run as run_solver};
 
-    struct NoisySphere;
     const OPT: [f64; 4] = [1.0, -2.0, 0.5, 3.0];
-
-    impl Differentiable for NoisySphere {
-        fn evaluate(&self, _theta: &[f64], _iter: u64) -> Result<Evaluation> {
-            Err(Error::InvalidInput("value-only test problem".into()))
-        }
-    }
-    impl Anneal for NoisySphere {
-        fn anneal_cost(&self, theta: &[f64], stream: u64, _frac: f64) -> Result<f64> {
-            let noise = (ifslab::chaos::mix_seed(stream, 7) % 1000) as f64 * 1e-7;
-            Ok(theta
-                .iter()
-                .zip(OPT)
-                .map(|(t, o)| (t - o).powi(2))
-                .sum::<f64>()
-                + noise)
-        }
-    }
 
     fn run(seed: u64, iters: u64) -> (Vec<f64>, f64, Swarm) {
         let cfg = SwarmConfig {
             sigma: 2.0,
             ..SwarmConfig::default()
         };
-        let solver = Swarm::new(cfg, iters, seed).unwrap();
-        let res = Executor::new(NoisySphere, solver)
-            .configure(|s| s.param(vec![0.0; 4]).max_iters(iters))
-            .run()
-            .unwrap();
-        let st = res.state();
-        (
-            st.get_param().unwrap().clone(),
-            st.get_cost(),
-            res.solver().clone(),
+        let problem = NoisySphere {
+            opt: OPT.to_vec(),
+            noise: 1e-4,
+        };
+        run_solver(
+            problem,
+            Swarm::new(cfg, iters, seed).unwrap(),
+            vec![0.0; 4],
+            iters,
         )
     }
 
     #[test]
     fn finds_the_minimum_of_a_noisy_sphere() {
-        let start = NoisySphere.anneal_cost(&[0.0; 4], 0, 0.0).unwrap();
+        let start = NoisySphere::standard()
+            .anneal_cost(&[0.0; 4], 0, 0.0)
+            .unwrap();
         for seed in [1, 2] {
             let (theta, cost, solver) = run(seed, 150);
             assert!(cost < 1e-3 * start, "seed {seed}: {cost} from {start}");
