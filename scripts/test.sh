@@ -21,7 +21,9 @@ fi
 cargo test --workspace --profile ci
 # Sweeps on a real (one-node, localhost) Slurm cluster: skipped, loudly, where Slurm cannot
 # be installed or started; never a silent pass.
-cargo build --profile ci -p ifslab-experiments
+# The tests built the binary already (the CLI tests run it); `cargo build` would unify
+# features without the dev-dependencies and recompile half the tree for the same binary.
+[ -x target/ci/ifslab ] || cargo build --profile ci -p ifslab-experiments
 status=0
 scripts/slurm_test.sh target/ci/ifslab || status=$?
 if [ "$status" = 77 ]; then

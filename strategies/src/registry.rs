@@ -345,10 +345,13 @@ mod tests {
 
     #[test]
     fn unknown_kinds_and_fields_are_named() {
-        let e = resolve("cmaes", &toml::Table::new())
+        let e = resolve("no_such_strategy", &toml::Table::new())
             .unwrap_err()
             .to_string();
-        assert!(e.contains("cmaes") && e.contains("hybrid"), "{e}");
+        assert!(
+            e.contains("no_such_strategy") && e.contains("hybrid"),
+            "{e}"
+        );
         let mut t = toml::Table::new();
         t.insert("lr_typo".into(), toml::Value::Float(0.1));
         let e = resolve("adam", &t).unwrap_err().to_string();
