@@ -277,8 +277,22 @@ pub fn paper_metrics<T: Real + candle_core::WithDType>(
     height: usize,
     net: Option<&Lpips>,
 ) -> Result<ImageMetrics> {
+    cropped_metrics(pred, target, width, height, EVAL_BORDER_FRACTION, net)
+}
+
+/// [`paper_metrics`] with another border: `border_fraction` of each side is left out (0 for
+/// a zoomed-in patch, whose window is filled edge to edge, where a full view's margin is
+/// empty by construction).
+pub fn cropped_metrics<T: Real + candle_core::WithDType>(
+    pred: &[T],
+    target: &[T],
+    width: usize,
+    height: usize,
+    border_fraction: f64,
+    net: Option<&Lpips>,
+) -> Result<ImageMetrics> {
     crate::loss::check_pair(pred, target, width, height)?;
-    let rect = border_crop_rect(width, height, EVAL_BORDER_FRACTION)?;
+    let rect = border_crop_rect(width, height, border_fraction)?;
     let (p, t) = (crop(pred, width, rect), crop(target, width, rect));
     let mask = foreground_mask(&p, &t, 0.0);
     let foreground_pixels = mask.iter().filter(|&&m| m).count();

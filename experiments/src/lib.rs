@@ -27,4 +27,5 @@ pub mod codes;
 pub mod plot;
 pub mod progress;
 pub mod runs;
+pub mod suite;
 pub mod sweep;

@@ -39,6 +39,8 @@ enum Command {
     /// Run what a config file describes: an image inversion, a points fit or a texture
     /// upsampling (its `problem` key).
     Run(cmd::run::Args),
+    /// The chaotic-splatting paper's random test suite: make it, score a code against it.
+    Suite(cmd::suite::Args),
     /// Run the runs of a sweep file: here, as one shard, or as a Slurm job array.
     Sweep(cmd::sweep::Args),
     /// Merge a sweep's results into one table, aggregates, plots and a Markdown report.
@@ -62,6 +64,7 @@ fn main() -> anyhow::Result<()> {
         Command::Texture(a) => cmd::texture::run(a),
         Command::Invert(a) => cmd::invert::run(a),
         Command::Run(a) => cmd::run::run(a),
+        Command::Suite(a) => cmd::suite::run(a),
         Command::Sweep(a) => cmd::sweep::run(a),
         Command::Collect(a) => cmd::collect::run(a),
         Command::Landscape(a) => cmd::landscape::run(a),

@@ -53,6 +53,8 @@ fn base_config(size: usize, iterations: u64, strategy: StrategyConfig) -> Invers
         target: TargetConfig {
             image: None,
             code: Some("sierpinski".into()),
+            suite: None,
+            index: None,
             size,
             polarity: Default::default(),
         },

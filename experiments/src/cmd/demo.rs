@@ -49,6 +49,8 @@ pub fn demo_config(a: &Args) -> anyhow::Result<InversionConfig> {
         target: TargetConfig {
             image: None,
             code: Some(a.target.clone()),
+            suite: None,
+            index: None,
             size: 96,
             polarity: Default::default(),
         },

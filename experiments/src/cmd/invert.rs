@@ -115,6 +115,8 @@ fn config_from_flags(a: &Args) -> anyhow::Result<InversionConfig> {
     let target = TargetConfig {
         image: is_image.then(|| PathBuf::from(&spec)),
         code: (!is_image).then(|| spec.clone()),
+        suite: None,
+        index: None,
         size: a.size,
         polarity: if a.dark_on_light {
             Polarity::DarkOnLight

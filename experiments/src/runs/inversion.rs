@@ -51,14 +51,23 @@ pub fn prepare_target(cfg: &InversionConfig) -> anyhow::Result<Vec<f32>> {
     Ok(render(&maps, &probs, &rc, None)?.values)
 }
 
-/// The maps and evaluation probabilities of a config's target code.
+/// The maps and evaluation probabilities of a config's target code (a code, or a suite's).
 fn target_code(cfg: &InversionConfig) -> anyhow::Result<(Vec<Affine2>, Vec<f64>)> {
-    let spec = cfg
-        .target
-        .code
-        .as_deref()
-        .context("the target is an image, not a code")?;
-    let code = resolve_code(spec)?;
+    let code = match (&cfg.target.suite, cfg.target.index) {
+        (Some(dir), Some(index)) => {
+            let manifest = crate::suite::load(dir)?;
+            let path = dir.join(&manifest.entry(index)?.code);
+            IfsCode::load(&path).with_context(|| format!("loading {}", path.display()))?
+        }
+        _ => {
+            let spec = cfg
+                .target
+                .code
+                .as_deref()
+                .context("the target is an image, not a code")?;
+            resolve_code(spec)?
+        }
+    };
     let maps = code.affine2().context("the target code must be 2-D")?;
     let probs = code.evaluation_probabilities()?;
     Ok((maps, probs))
@@ -130,6 +139,10 @@ pub struct Summary {
     pub lpips_metric_note: Option<String>,
     /// Why LPIPS was not used in the loss, if it was not.
     pub lpips_note: Option<String>,
+    /// For a suite target: the paper's metrics over the suite's views (full view and
+    /// zoomed-in patches) and their means.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub suite: Option<crate::suite::SuiteScore>,
 }
 
 impl Summary {
@@ -138,8 +151,21 @@ impl Summary {
         let lpips = self
             .lpips
             .map_or_else(String::new, |v| format!(", LPIPS {v:.3}"));
+        let suite = self.suite.as_ref().map_or_else(String::new, |s| {
+            let lpips = s
+                .lpips
+                .map_or_else(String::new, |v| format!(", LPIPS {v:.3}"));
+            format!(
+                "; over the suite's {} views: F1 {:.3}, IoU {:.3}, PSNR {:.2} dB, SSIM {:.3}{lpips}",
+                s.views.len(),
+                s.f1,
+                s.iou,
+                s.psnr,
+                s.ssim
+            )
+        });
         format!(
-            "IoU {:.3}, F1 {:.3}, PSNR {:.2} dB, SSIM {:.3}{lpips}",
+            "IoU {:.3}, F1 {:.3}, PSNR {:.2} dB, SSIM {:.3}{lpips}{suite}",
             self.iou, self.f1, self.psnr, self.ssim
         )
     }
@@ -184,10 +210,27 @@ pub fn run_and_report(
         vec![Box::new(ProgressObserver::new(progress))],
     )?;
     let (metrics, lpips_metric_note) = write_outputs(cfg, dir, &outcome, &target)?;
+    let seconds = started.elapsed().as_secs_f64();
+    let suite = match (&cfg.target.suite, cfg.target.index) {
+        (Some(suite_dir), Some(index)) => {
+            let manifest = crate::suite::load(suite_dir)?;
+            let probs = IfsCode::from_affine2(None, &outcome.maps)?.evaluation_probabilities()?;
+            let net = Lpips::try_load_default()?;
+            Some(crate::suite::score_maps(
+                suite_dir,
+                &manifest,
+                index,
+                &outcome.maps,
+                &probs,
+                net.as_ref(),
+            )?)
+        }
+        _ => None,
+    };
     let summary = Summary {
         strategy: cfg.strategy.name().into(),
         iterations: outcome.iterations,
-        seconds: started.elapsed().as_secs_f64(),
+        seconds,
         final_loss: outcome.final_loss,
         iou: metrics.iou,
         f1: metrics.f1,
@@ -196,6 +239,7 @@ pub fn run_and_report(
         lpips: metrics.lpips,
         lpips_metric_note,
         lpips_note: outcome.lpips_note.clone(),
+        suite,
     };
     ifslab::io::write_atomic(
         &dir.join("summary.json"),
@@ -226,7 +270,7 @@ fn write_outputs(
     code.save(dir.join("code.json"))?;
     final_render.save_png(&dir.join("render.png"), BitDepth::Eight, false)?;
     let truth = ground_truth(cfg, target)?;
-    if cfg.target.code.is_some() {
+    if cfg.target.code.is_some() || cfg.target.suite.is_some() {
         save_grey_png(
             &dir.join("truth.png"),
             &truth,

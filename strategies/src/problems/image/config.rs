@@ -26,6 +26,13 @@ pub struct TargetConfig {
     /// Or a code (file or built-in name) rendered as the target.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub code: Option<String>,
+    /// Or code `index` of a test suite (a folder made by `ifslab suite make`): its code is
+    /// rendered as the target, and the run is also scored on the suite's views.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub suite: Option<PathBuf>,
+    /// Which code of `suite` (0-based).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub index: Option<usize>,
     /// Side of the square target and render, in pixels.
     #[serde(default = "default_size")]
     pub size: usize,
@@ -365,10 +372,13 @@ impl InversionConfig {
     /// The same config with its relative file names (target image, code files that exist
     /// there) read as relative to `dir`, the folder of the file the config came from.
     pub fn relative_to(mut self, dir: &Path) -> Self {
-        if let Some(img) = &self.target.image
-            && img.is_relative()
+        for path in [&mut self.target.image, &mut self.target.suite]
+            .into_iter()
+            .flatten()
         {
-            self.target.image = Some(dir.join(img));
+            if path.is_relative() {
+                *path = dir.join(&*path);
+            }
         }
         for spec in [&mut self.target.code, &mut self.model.init_code]
             .into_iter()
@@ -399,6 +409,9 @@ impl InversionConfig {
         if let Some(img) = &self.target.image {
             cfg.target.image = Some(abs(img)?);
         }
+        if let Some(suite) = &self.target.suite {
+            cfg.target.suite = Some(abs(suite)?);
+        }
         cfg.target.code = self.target.code.as_ref().map(file_spec).transpose()?;
         cfg.model.init_code = self.model.init_code.as_ref().map(file_spec).transpose()?;
         if let Some(out) = &self.output {
@@ -415,18 +428,24 @@ impl InversionConfig {
             ));
         }
         let t = &self.target;
-        match (&t.image, &t.code) {
-            (Some(_), Some(_)) => {
+        let given = [t.image.is_some(), t.code.is_some(), t.suite.is_some()];
+        match given.iter().filter(|&&g| g).count() {
+            0 => {
                 return Err(Error::InvalidInput(
-                    "config section [target]: give either `image` or `code`, not both".into(),
+                    "config section [target]: give `image = \"file.png\"`, `code = \"sierpinski\"` or `suite = \"SUITE\", index = 0`".into(),
                 ));
             }
-            (None, None) => {
+            1 => {}
+            _ => {
                 return Err(Error::InvalidInput(
-                    "config section [target]: give `image = \"file.png\"` or `code = \"sierpinski\"`".into(),
+                    "config section [target]: give one of `image`, `code` and `suite`, not several".into(),
                 ));
             }
-            _ => {}
+        }
+        if t.suite.is_some() != t.index.is_some() {
+            return Err(Error::InvalidInput(
+                "config section [target]: `suite` and `index` go together (which code of the suite)".into(),
+            ));
         }
         if !(8..=4096).contains(&t.size) {
             return Err(Error::InvalidInput(format!(

@@ -1,0 +1,414 @@
+//! `ifslab suite make`: codes, views and ground-truth renders.
+
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+use anyhow::{Context, bail};
+use ifslab::chaos::ChaosGame;
+use ifslab::chaos::{mix_seed, trajectory_rng};
+use ifslab::model::random::sample_code;
+use ifslab::model::{Affine2, Framing, IfsCode};
+use ifslab::progress::Progress;
+use ifslab::render::image_io::{BitDepth, save_grey_png};
+use ifslab::render::{Raster, RenderConfig, View, Zoom, render};
+use rand::Rng;
+use serde::{Deserialize, Serialize};
+
+use super::{FORMAT, MANIFEST};
+
+/// How big a suite's renders are: the paper's setting, and two a 2-core machine can finish.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Tier {
+    /// 64², 1 M points per view: seconds per code, for tests.
+    Smoke,
+    /// 256², 10 M points per view (zoomed views: until 10 M land in the window, at most
+    /// 640 M generated).
+    Medium,
+    /// The paper's setting: 1024², 50 M points per view.
+    Full,
+}
+
+impl Tier {
+    /// Side of every view, in pixels.
+    pub fn size(self) -> usize {
+        match self {
+            Tier::Smoke => 64,
+            Tier::Medium => 256,
+            Tier::Full => 1024,
+        }
+    }
+
+    /// Points per view that should land in its window.
+    pub fn points(self) -> u64 {
+        match self {
+            Tier::Smoke => 1_000_000,
+            Tier::Medium => 10_000_000,
+            Tier::Full => 50_000_000,
+        }
+    }
+
+    /// The name used on the command line and in the manifest.
+    pub fn name(self) -> &'static str {
+        match self {
+            Tier::Smoke => "smoke",
+            Tier::Medium => "medium",
+            Tier::Full => "full",
+        }
+    }
+}
+
+impl FromStr for Tier {
+    type Err = anyhow::Error;
+    fn from_str(s: &str) -> anyhow::Result<Self> {
+        Ok(match s {
+            "smoke" => Tier::Smoke,
+            "medium" => Tier::Medium,
+            "full" => Tier::Full,
+            _ => bail!("unknown tier `{s}` (known: smoke, medium, full)"),
+        })
+    }
+}
+
+/// What to draw: the suite's parameters. Everything else follows from them.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SuiteSpec {
+    /// Number of codes.
+    pub codes: usize,
+    /// Seed of the whole suite.
+    pub seed: u64,
+    /// Render size and point budget.
+    pub tier: Tier,
+    /// Zoomed-in patches per code (the paper: 6).
+    pub patches: usize,
+    /// Largest zoom factor of a patch (the paper: 8); factors are uniform in [2, max_zoom].
+    pub max_zoom: f64,
+    /// Fewest and most maps of a code (the paper: 3 and 10), drawn uniformly.
+    pub maps: [usize; 2],
+    /// Binary supersampling per side of every render (the paper: 8).
+    pub supersample: u32,
+}
+
+impl SuiteSpec {
+    /// The paper's suite at `tier`: `codes` codes, N ∈ 3..=10, six patches up to 8×, 8×8
+    /// binary supersampling.
+    pub fn paper(codes: usize, seed: u64, tier: Tier) -> Self {
+        SuiteSpec {
+            codes,
+            seed,
+            tier,
+            patches: 6,
+            max_zoom: 8.0,
+            maps: [3, 10],
+            supersample: 8,
+        }
+    }
+
+    fn validate(&self) -> anyhow::Result<()> {
+        if !(1..=100_000).contains(&self.codes) {
+            bail!("--codes must lie in 1..=100000, got {}", self.codes);
+        }
+        if self.patches > 64 {
+            bail!("at most 64 patches per code, got {}", self.patches);
+        }
+        if !(self.max_zoom.is_finite() && self.max_zoom >= 2.0) {
+            bail!("--max-zoom must be at least 2, got {}", self.max_zoom);
+        }
+        let [lo, hi] = self.maps;
+        if !(2 <= lo && lo <= hi && hi <= 64) {
+            bail!("map counts must satisfy 2 ≤ min ≤ max ≤ 64, got {lo}..={hi}");
+        }
+        if !(1..=16).contains(&self.supersample) {
+            bail!("supersampling must lie in 1..=16, got {}", self.supersample);
+        }
+        Ok(())
+    }
+
+    /// How every view of this suite is rendered (truths and scored codes alike).
+    pub fn render_config(&self, seed: u64) -> RenderConfig {
+        let size = self.tier.size() as u32;
+        RenderConfig {
+            width: size,
+            height: size,
+            points: self.tier.points(),
+            supersample: self.supersample,
+            seed,
+            min_hits: self.tier.points(),
+            max_points: 64 * self.tier.points(),
+            ..RenderConfig::default()
+        }
+    }
+}
+
+/// One view of a code.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ViewEntry {
+    /// `full`, `zoom1`, `zoom2`, …
+    pub name: String,
+    /// Magnification against the full view (1 for it).
+    pub factor: f64,
+    /// Centre as fractions of the full view's window (x from its left, y from its bottom).
+    pub center: [f64; 2],
+    /// The ground-truth render, relative to the suite folder.
+    pub truth: PathBuf,
+    /// Points of the truth render that landed in the window.
+    pub points_in_window: u64,
+    /// Whether the truth reached the tier's point count in the window (the paper marks the
+    /// views that did not with ▲; here the cap is 64× the count generated, not a time).
+    pub complete: bool,
+}
+
+/// One code of a suite.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CodeEntry {
+    /// Position in the suite.
+    pub index: usize,
+    /// Number of maps.
+    pub maps: usize,
+    /// Seed the Anderson–Farrell sampler drew it with.
+    pub seed: u64,
+    /// The code file, relative to the suite folder.
+    pub code: PathBuf,
+    /// Seed of its renders.
+    pub render_seed: u64,
+    /// The full view's window in the code's coordinates.
+    pub window: Framing,
+    /// The full view first, then the patches.
+    pub views: Vec<ViewEntry>,
+}
+
+/// The manifest, `suite.json`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Manifest {
+    /// [`FORMAT`].
+    pub format: String,
+    /// What was drawn.
+    pub spec: SuiteSpec,
+    /// Every code, by index.
+    pub codes: Vec<CodeEntry>,
+}
+
+impl Manifest {
+    /// Entry `index`, or an error naming the suite's size.
+    pub fn entry(&self, index: usize) -> anyhow::Result<&CodeEntry> {
+        self.codes.get(index).with_context(|| {
+            format!(
+                "the suite has codes 0..{}, there is no code {index}",
+                self.codes.len()
+            )
+        })
+    }
+}
+
+/// Loads and checks `DIR/suite.json`.
+pub fn load(dir: &Path) -> anyhow::Result<Manifest> {
+    let path = dir.join(MANIFEST);
+    let text = std::fs::read_to_string(&path).with_context(|| {
+        format!(
+            "reading {} (make a suite with `ifslab suite make -o {}`)",
+            path.display(),
+            dir.display()
+        )
+    })?;
+    let m: Manifest =
+        serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+    if m.format != FORMAT {
+        bail!(
+            "{}: format `{}`, expected `{FORMAT}`",
+            path.display(),
+            m.format
+        );
+    }
+    for (i, c) in m.codes.iter().enumerate() {
+        if c.index != i || c.views.is_empty() {
+            bail!("{}: code entry {i} is malformed", path.display());
+        }
+    }
+    Ok(m)
+}
+
+const SPEC_FILE: &str = "spec.json";
+const VIEWS_FILE: &str = "views.json";
+
+/// Makes (or completes) the suite `spec` in `dir`; `progress` counts codes.
+pub fn make(spec: &SuiteSpec, dir: &Path, progress: &dyn Progress) -> anyhow::Result<Manifest> {
+    spec.validate()?;
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let spec_path = dir.join(SPEC_FILE);
+    if spec_path.is_file() {
+        let old: SuiteSpec = serde_json::from_str(&std::fs::read_to_string(&spec_path)?)
+            .with_context(|| format!("parsing {}", spec_path.display()))?;
+        if old != *spec {
+            bail!(
+                "{} holds a different suite ({}); give another folder",
+                dir.display(),
+                serde_json::to_string(&old)?
+            );
+        }
+    } else {
+        ifslab::io::write_atomic(&spec_path, serde_json::to_string_pretty(spec)?.as_bytes())?;
+    }
+    progress.start("suite", spec.codes as u64);
+    let mut codes = Vec::with_capacity(spec.codes);
+    for index in 0..spec.codes {
+        let folder = dir.join(format!("{index:03}"));
+        let views = folder.join(VIEWS_FILE);
+        let entry = if views.is_file() {
+            serde_json::from_str(&std::fs::read_to_string(&views)?)
+                .with_context(|| format!("parsing {}", views.display()))?
+        } else {
+            make_code(spec, dir, index)?
+        };
+        codes.push(entry);
+        progress.inc(1);
+    }
+    progress.finish();
+    let manifest = Manifest {
+        format: FORMAT.into(),
+        spec: spec.clone(),
+        codes,
+    };
+    ifslab::io::write_atomic(
+        &dir.join(MANIFEST),
+        serde_json::to_string_pretty(&manifest)?.as_bytes(),
+    )?;
+    Ok(manifest)
+}
+
+/// Draws code `index`, renders its views into `.NNN.partial/` and renames it.
+fn make_code(spec: &SuiteSpec, dir: &Path, index: usize) -> anyhow::Result<CodeEntry> {
+    let name = format!("{index:03}");
+    let mut rng = trajectory_rng(spec.seed ^ 0x5017_E5EE_D000_0000, index as u64);
+    let [lo, hi] = spec.maps;
+    let n = rng.random_range(lo..=hi);
+    let seed: u64 = rng.random();
+    let sampled = sample_code(n, seed)?;
+    let mut code = IfsCode::from_affine2(Some(&format!("suite-{name}")), &sampled.maps)?;
+    code.meta
+        .insert("sampler".into(), "anderson-farrell".into());
+    code.meta.insert("seed".into(), seed.into());
+    let probs = code.evaluation_probabilities()?;
+    let render_seed = mix_seed(spec.seed, index as u64);
+
+    let partial = dir.join(format!(".{name}.partial"));
+    if partial.exists() {
+        std::fs::remove_dir_all(&partial)
+            .with_context(|| format!("removing {}", partial.display()))?;
+    }
+    std::fs::create_dir_all(&partial)?;
+    code.save(partial.join("code.json"))?;
+
+    let full = render(
+        &sampled.maps,
+        &probs,
+        &spec.render_config(render_seed),
+        None,
+    )?;
+    let window = full.stats.window;
+    let mut views = vec![save_view(spec, &partial, &name, "full", 1.0, [0.5; 2], &full)?];
+    // Patch centres are points of the attractor (so every patch shows some of it), drawn
+    // from a short seeded chaos game; factors are uniform in [2, max_zoom].
+    let pool = ChaosGame {
+        trajectories: 64,
+        length: 300,
+        warmup: 100,
+        start_half_width: 1.0,
+        seed: render_seed ^ 0xCE47E5,
+    }
+    .generate(&sampled.maps, &probs)?
+    .data;
+    for k in 0..spec.patches {
+        let factor = rng.random_range(2.0..=spec.max_zoom);
+        let p = pool[rng.random_range(0..pool.len())];
+        let size = window.size();
+        let center = [
+            (p[0] - window.min[0]) / size[0],
+            (p[1] - window.min[1]) / size[1],
+        ];
+        let raster = render_view(spec, &sampled.maps, &probs, &window, factor, center, render_seed)?;
+        views.push(save_view(
+            spec,
+            &partial,
+            &name,
+            &format!("zoom{}", k + 1),
+            factor,
+            center,
+            &raster,
+        )?);
+    }
+    let entry = CodeEntry {
+        index,
+        maps: n,
+        seed,
+        code: PathBuf::from(&name).join("code.json"),
+        render_seed,
+        window,
+        views,
+    };
+    ifslab::io::write_atomic(
+        &partial.join(VIEWS_FILE),
+        serde_json::to_string_pretty(&entry)?.as_bytes(),
+    )?;
+    std::fs::rename(&partial, dir.join(&name))
+        .with_context(|| format!("finishing {}", dir.join(&name).display()))?;
+    Ok(entry)
+}
+
+/// Renders the view of `maps` at `factor` around `center` (fractions of `window`), until
+/// the tier's point count lands in it or 64 times that count has been generated.
+pub(super) fn render_view(
+    spec: &SuiteSpec,
+    maps: &[Affine2],
+    probs: &[f64],
+    window: &Framing,
+    factor: f64,
+    center: [f64; 2],
+    seed: u64,
+) -> anyhow::Result<Raster> {
+    let size = window.size();
+    let world = [
+        window.min[0] + center[0] * size[0],
+        window.min[1] + center[1] * size[1],
+    ];
+    let cfg = RenderConfig {
+        view: View::Window(*window),
+        zoom: Some(Zoom {
+            factor,
+            center: Some(world),
+        }),
+        ..spec.render_config(seed)
+    };
+    Ok(render(maps, probs, &cfg, None)?)
+}
+
+fn save_view(
+    spec: &SuiteSpec,
+    folder: &Path,
+    code: &str,
+    name: &str,
+    factor: f64,
+    center: [f64; 2],
+    raster: &Raster,
+) -> anyhow::Result<ViewEntry> {
+    let file = format!("{name}.png");
+    save_grey_png(
+        &folder.join(&file),
+        &raster.values,
+        raster.width,
+        raster.height,
+        BitDepth::Sixteen,
+        false,
+    )?;
+    Ok(ViewEntry {
+        name: name.into(),
+        factor,
+        center,
+        truth: PathBuf::from(code).join(file),
+        points_in_window: raster.stats.points_in_window,
+        complete: raster.stats.points_in_window >= spec.tier.points(),
+    })
+}
