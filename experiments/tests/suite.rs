@@ -111,7 +111,11 @@ fn a_run_on_a_suite_code_is_scored_on_its_views() {
     assert!(msg.contains("2 codes, 14 views"), "{msg}");
     let base = "seed = 1\niterations = 5\n[model]\nmaps = 10\n\
                 [generator]\ntrajectories = 100\nlength = 40\n[target]\nsize = 32\n";
-    std::fs::write(dir.join("run.toml"), format!("{base}suite = \"s\"\nindex = 1\n")).unwrap();
+    std::fs::write(
+        dir.join("run.toml"),
+        format!("{base}suite = \"s\"\nindex = 1\n"),
+    )
+    .unwrap();
     let (ok, msg) = ifslab_in(dir, &["run", "run.toml", "-o", "out"]);
     assert!(ok, "{msg}");
     assert!(msg.contains("over the suite's 7 views"), "{msg}");
@@ -124,7 +128,10 @@ fn a_run_on_a_suite_code_is_scored_on_its_views() {
     assert!((0.0..=1.0).contains(&s["iou"].as_f64().unwrap()), "{s}");
 
     // The truth scores perfectly through the command line too.
-    let (ok, msg) = ifslab_in(dir, &["suite", "score", "s", "--index", "1", "s/001/code.json"]);
+    let (ok, msg) = ifslab_in(
+        dir,
+        &["suite", "score", "s", "--index", "1", "s/001/code.json"],
+    );
     assert!(ok && msg.contains("IoU 1.000"), "{msg}");
 
     for (target, want) in [
@@ -139,6 +146,9 @@ fn a_run_on_a_suite_code_is_scored_on_its_views() {
         std::fs::write(dir.join("bad.toml"), format!("{base}{target}")).unwrap();
         let (ok, msg) = ifslab_in(dir, &["run", "bad.toml", "-o", "bad"]);
         assert!(!ok && msg.contains(want), "{target}: {msg}");
-        assert!(!dir.join("bad").exists(), "{target}: a failed start left a folder");
+        assert!(
+            !dir.join("bad").exists(),
+            "{target}: a failed start left a folder"
+        );
     }
 }

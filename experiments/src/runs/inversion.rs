@@ -139,6 +139,9 @@ pub struct Summary {
     pub lpips_metric_note: Option<String>,
     /// Why LPIPS was not used in the loss, if it was not.
     pub lpips_note: Option<String>,
+    /// Which θ the run returned — the last iterate or the best one it saw — and their
+    /// objectives on fixed random streams.
+    pub selection: ifslab_strategies::problems::image::Selection,
     /// For a suite target: the paper's metrics over the suite's views (full view and
     /// zoomed-in patches) and their means.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -239,6 +242,7 @@ pub fn run_and_report(
         lpips: metrics.lpips,
         lpips_metric_note,
         lpips_note: outcome.lpips_note.clone(),
+        selection: outcome.selection.clone(),
         suite,
     };
     ifslab::io::write_atomic(

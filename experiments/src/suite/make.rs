@@ -309,7 +309,9 @@ fn make_code(spec: &SuiteSpec, dir: &Path, index: usize) -> anyhow::Result<CodeE
         None,
     )?;
     let window = full.stats.window;
-    let mut views = vec![save_view(spec, &partial, &name, "full", 1.0, [0.5; 2], &full)?];
+    let mut views = vec![save_view(
+        spec, &partial, &name, "full", 1.0, [0.5; 2], &full,
+    )?];
     // Patch centres are points of the attractor (so every patch shows some of it), drawn
     // from a short seeded chaos game; factors are uniform in [2, max_zoom].
     let pool = ChaosGame {
@@ -329,7 +331,15 @@ fn make_code(spec: &SuiteSpec, dir: &Path, index: usize) -> anyhow::Result<CodeE
             (p[0] - window.min[0]) / size[0],
             (p[1] - window.min[1]) / size[1],
         ];
-        let raster = render_view(spec, &sampled.maps, &probs, &window, factor, center, render_seed)?;
+        let raster = render_view(
+            spec,
+            &sampled.maps,
+            &probs,
+            &window,
+            factor,
+            center,
+            render_seed,
+        )?;
         views.push(save_view(
             spec,
             &partial,

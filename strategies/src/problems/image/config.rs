@@ -438,7 +438,8 @@ impl InversionConfig {
             1 => {}
             _ => {
                 return Err(Error::InvalidInput(
-                    "config section [target]: give one of `image`, `code` and `suite`, not several".into(),
+                    "config section [target]: give one of `image`, `code` and `suite`, not several"
+                        .into(),
                 ));
             }
         }

@@ -26,7 +26,7 @@ pub use init::initial_theta;
 pub use landscape::{Directions, Landscape, LandscapeConfig, landscape};
 pub use model::{AffineModel, AnyModel, ImageModel, MODELS, SimilitudeModel, find_model};
 pub use problem::ImageProblem;
-pub use run::{InversionOutcome, ensure_new_run_dir, run_inversion};
+pub use run::{InversionOutcome, SELECTION_STREAMS, Selection, ensure_new_run_dir, run_inversion};
 pub use target::{
     FRAMED_TARGET_FILE, Polarity, frame_target, load_framed_target, load_target, save_framed_target,
 };

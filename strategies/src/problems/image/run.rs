@@ -19,11 +19,14 @@ use crate::registry::{self, AnySolver};
 pub const CHECKPOINT_FILE: &str = "checkpoint.json";
 /// The per-iteration log.
 pub const LOG_FILE: &str = "log.csv";
+/// The θ a run started from (JSON array), kept so a resumed run can still return it.
+pub const START_FILE: &str = "start.json";
 
 /// What an inversion produced.
 #[derive(Clone, Debug)]
 pub struct InversionOutcome {
-    /// Final θ.
+    /// The θ the run returns: of the last iterate and the best one the run saw, whichever
+    /// scores lower on fixed random streams ([`Selection`]).
     pub theta: Vec<f64>,
     /// Final maps (θ decoded).
     pub maps: Vec<Affine2>,
@@ -37,6 +40,85 @@ pub struct InversionOutcome {
     pub lpips_note: Option<String>,
     /// The CSV log.
     pub log: PathBuf,
+    /// How `theta` was chosen.
+    pub selection: Selection,
+}
+
+/// The random streams the returned θ is chosen on: far from any iteration's own stream, the
+/// same for every candidate, so the comparison is not decided by one lucky draw of points.
+pub const SELECTION_STREAMS: [u64; 3] = [u64::MAX - 1, u64::MAX - 2, u64::MAX - 3];
+
+/// The choice of the θ a run returns, among the last iterate, the best one argmin recorded
+/// (the lowest cost any iteration reported) and the start. Each iteration's cost is measured
+/// on its own random stream — and for Adam at the θ *before* the step it then takes, so the
+/// recorded best is one step away from the θ that was measured — so none is trusted: each is
+/// scored on [`SELECTION_STREAMS`] with the renderer the run ends with, and the lowest mean
+/// wins (ties go to the later one: last, then best, then start).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Selection {
+    /// `last`, `best` or `start`.
+    pub returned: &'static str,
+    /// Mean objective of the last iterate on the selection streams.
+    pub last: f64,
+    /// Mean objective of the recorded best, when it differs from the last iterate.
+    pub best: Option<f64>,
+    /// Iteration at which the recorded best was reported.
+    pub best_iter: Option<u64>,
+    /// Mean objective of the start, when it differs from both.
+    pub start: Option<f64>,
+}
+
+fn mean_objective(problem: &ImageProblem, theta: &[f64]) -> Result<f64> {
+    let mut sum = 0.0;
+    for s in SELECTION_STREAMS {
+        sum += problem.loss_breakdown(theta, s)?.total;
+    }
+    Ok(sum / SELECTION_STREAMS.len() as f64)
+}
+
+/// Picks the θ a run returns (see [`Selection`]).
+fn select(
+    problem: &ImageProblem,
+    state: &GradState,
+    start: &[f64],
+) -> Result<(Vec<f64>, Selection)> {
+    let last = state
+        .get_param()
+        .cloned()
+        .ok_or_else(|| Error::Numerical("the run ended without parameters".into()))?;
+    let last_score = mean_objective(problem, &last)?;
+    let usable = |t: &&Vec<f64>| **t != last && t.iter().all(|v| v.is_finite());
+    let best = state.get_best_param().filter(usable);
+    let start = Some(start.to_vec())
+        .filter(|s| s.len() == last.len() && Some(s) != best)
+        .filter(|s| usable(&s));
+    // A candidate the model cannot decode (a code the image problem refuses) loses.
+    let score = |t: &[f64]| mean_objective(problem, t).unwrap_or(f64::INFINITY);
+    let best_score = best.map(|b| score(b));
+    let start_score = start.as_deref().map(score);
+    let mut choice = ("last", last_score);
+    for (name, v) in [("best", best_score), ("start", start_score)] {
+        if let Some(v) = v
+            && v < choice.1
+        {
+            choice = (name, v);
+        }
+    }
+    let theta = match choice.0 {
+        "best" => best.cloned().expect("scored"),
+        "start" => start.clone().expect("scored"),
+        _ => last,
+    };
+    Ok((
+        theta,
+        Selection {
+            returned: choice.0,
+            last: last_score,
+            best: best_score,
+            best_iter: best.map(|_| state.get_last_best_iter()),
+            start: start_score,
+        },
+    ))
 }
 
 /// Lets a boxed observer be handed to argmin's executor.
@@ -104,10 +186,18 @@ pub fn run_inversion(
     };
     // A resumed run takes θ from its checkpoint; the start (an EM fit, say) is not redone.
     let problem = ImageProblem::from_config(cfg, target)?;
+    let start_path = dir.join(START_FILE);
     let theta0 = if resume_from.is_some() {
         Vec::new()
     } else {
-        initial_theta(cfg, problem.model(), problem.target())?
+        let t = initial_theta(cfg, problem.model(), problem.target())?;
+        ifslab::io::write_atomic(
+            &start_path,
+            serde_json::to_string(&t)
+                .map_err(|e| Error::Numerical(format!("start θ: {e}")))?
+                .as_bytes(),
+        )?;
+        t
     };
     let lpips_note = problem.lpips_skip_reason().map(str::to_owned);
     let stats = registry::stats(cfg.strategy.name())?;
@@ -124,12 +214,18 @@ pub fn run_inversion(
             seed: cfg.seed,
         },
     )?;
+    let start_theta = if resume_from.is_some() {
+        // Run folders from before the start was kept have none: the start is then no candidate.
+        std::fs::read(&start_path)
+            .ok()
+            .and_then(|b| serde_json::from_slice::<Vec<f64>>(&b).ok())
+            .unwrap_or_default()
+    } else {
+        theta0.clone()
+    };
     let res = execute(problem, solver, theta0, t, ckpt, log, observers)?;
     let (problem, state) = res;
-    let theta = state
-        .get_param()
-        .cloned()
-        .ok_or_else(|| Error::Numerical("the run ended without parameters".into()))?;
+    let (theta, selection) = select(&problem, &state, &start_theta)?;
     let maps = problem.model().affine_maps(&theta)?;
     Ok(InversionOutcome {
         theta,
@@ -139,6 +235,7 @@ pub fn run_inversion(
         seconds: start.elapsed().as_secs_f64(),
         lpips_note,
         log: dir.join(LOG_FILE),
+        selection,
     })
 }
 
