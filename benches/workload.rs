@@ -80,7 +80,7 @@ fn main() {
     for call in 0..calls {
         let seed = call as u64;
         sink += match stage {
-            "generation" => splat::trajectories::run(&cfg.game, &maps, seed)
+            "generation" => splat::trajectories::run(&cfg.game, &maps, None, seed)
                 .expect("generation")
                 .states
                 .len(),

@@ -238,3 +238,71 @@ fn recycled_buffers_do_not_leak_state_between_calls() {
     splat::release_buffers();
     assert_eq!(run(&maps()), first);
 }
+
+/// Map probabilities reach the chaos game: with all the weight on one map every kept point
+/// is (within the warm-up's contraction) that map's fixed point; uneven probabilities give a
+/// different image than uniform ones, and gradients still match finite differences.
+#[test]
+fn map_probabilities_choose_the_maps_and_keep_gradients_exact() {
+    let cfg = config(
+        Blend::Additive,
+        1,
+        SplatFraming::Window(Framing {
+            min: [-1.5, -1.5],
+            max: [1.5, 1.5],
+        }),
+    );
+    let maps = maps();
+    let only_first = [1.0, 0.0, 0.0];
+    let (_, tape) =
+        splat::forward_with_probabilities::<f64>(&cfg, &maps, Some(&only_first), 7).unwrap();
+    assert!(tape.trajectories.indices.iter().all(|&i| i == 0));
+    let fixed = maps[0].fixed_point().unwrap();
+    for p in tape.trajectories.kept_points() {
+        assert!((p[0] - fixed[0]).abs() < 1e-2 && (p[1] - fixed[1]).abs() < 1e-2);
+    }
+
+    let uneven = [0.6, 0.3, 0.1];
+    let (a, tape) =
+        splat::forward_with_probabilities::<f64>(&cfg, &maps, Some(&uneven), 7).unwrap();
+    let (b, _) = splat::forward::<f64>(&cfg, &maps, 7).unwrap();
+    assert_ne!(a, b);
+    let counts = (0..3)
+        .map(|k| {
+            tape.trajectories
+                .indices
+                .iter()
+                .filter(|&&i| i == k)
+                .count()
+        })
+        .collect::<Vec<_>>();
+    assert!(counts[0] > 4 * counts[2], "{counts:?}");
+
+    let w = weights(cfg.width * cfg.height);
+    let grad = splat::backward(&cfg, &maps, &tape, &w).unwrap();
+    let l = |m: &[Affine2]| -> f64 {
+        let (img, _) = splat::forward_with_probabilities::<f64>(&cfg, m, Some(&uneven), 7).unwrap();
+        img.iter().zip(&w).map(|(a, b)| a * b).sum()
+    };
+    for k in [0, 5, 9, 16] {
+        let h = 1e-6;
+        let mut mp = maps.clone();
+        let mut mm = maps.clone();
+        let mut cp = mp[k / 6].coefficients();
+        let mut cm = mm[k / 6].coefficients();
+        cp[k % 6] += h;
+        cm[k % 6] -= h;
+        mp[k / 6] = Affine2::from_coefficients(&cp);
+        mm[k / 6] = Affine2::from_coefficients(&cm);
+        let fd = (l(&mp) - l(&mm)) / (2.0 * h);
+        assert!(
+            (fd - grad[k]).abs() < 1e-5 * (1.0 + fd.abs()),
+            "θ[{k}]: analytic {} vs fd {fd}",
+            grad[k]
+        );
+    }
+    let e = splat::forward_with_probabilities::<f64>(&cfg, &maps, Some(&[0.5, 0.5]), 7)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("2 probabilities for 3 maps"), "{e}");
+}

@@ -88,7 +88,7 @@ fn bench_splat(c: &mut Criterion) {
         g.bench_function("generation", |b| {
             b.iter(|| {
                 black_box(
-                    splat::trajectories::run(&cfg.game, &maps, 1)
+                    splat::trajectories::run(&cfg.game, &maps, None, 1)
                         .unwrap()
                         .states
                         .len(),

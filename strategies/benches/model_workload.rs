@@ -22,7 +22,7 @@ use ifslab::model::param::Parameterisation;
 use ifslab::model::random::sample_code;
 use ifslab::model::{Affine2, Svd};
 use ifslab::render::splat::{self, Blend, SplatConfig, SplatOp, maps_from_tensor, maps_to_tensor};
-use ifslab_strategies::problems::image::{AffineModel, AnyModel};
+use ifslab_strategies::problems::image::{AffineModel, AnyModel, DrawOptions};
 
 #[global_allocator]
 static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
@@ -94,7 +94,13 @@ fn main() {
             }
             "model" => {
                 let (_, g) = any
-                    .evaluate(&theta, cfg.clone(), seed, &objective)
+                    .evaluate(
+                        &theta,
+                        cfg.clone(),
+                        seed,
+                        &DrawOptions::default(),
+                        &objective,
+                    )
                     .expect("evaluate");
                 g[0]
             }

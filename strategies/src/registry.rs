@@ -27,6 +27,7 @@ use crate::optim::cuckoo::{Cuckoo, CuckooConfig};
 use crate::optim::evolutionary::{Evolutionary, EvolutionaryConfig};
 use crate::optim::gd::{GdConfig, GradientDescent};
 use crate::optim::hybrid::{ColdHybridConfig, Hybrid, HybridConfig};
+use crate::optim::learning_fractals::{LearningFractals, LearningFractalsConfig};
 use crate::optim::noisy::{NoisyAdam, NoisyConfig};
 use crate::optim::swarm::{Swarm, SwarmConfig};
 
@@ -211,6 +212,9 @@ pub fn strategies<P: StrategyProblem>() -> Vec<StrategyEntry<P>> {
         StrategyEntry::new(|c: CmaesConfig, r| Cmaes::new(c, r.iterations, r.seed)),
         StrategyEntry::new(|c: CuckooConfig, r| Cuckoo::new(c, r.iterations, r.seed)),
         StrategyEntry::new(|c: SwarmConfig, r| Swarm::new(c, r.iterations, r.seed)),
+        StrategyEntry::new(|c: LearningFractalsConfig, r| {
+            LearningFractals::new(c, r.iterations, r.seed)
+        }),
     ]
 }
 

@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use ifslab::model::ParamKind;
+use ifslab_strategies::driver::Params;
 use ifslab_strategies::optim::adam::AdamConfig;
 use ifslab_strategies::optim::hybrid::{ColdHybridConfig, HybridConfig};
 use ifslab_strategies::optim::noisy::NoisyConfig;
@@ -34,7 +35,10 @@ pub struct Args {
     pub iters: u64,
     /// Any registered strategy (hybrid, cold_hybrid, adam, annealing, noisy, gd, and the
     /// value-only baselines evolutionary, cmaes, cuckoo and swarm: one generation per
-    /// iteration). `hybrid`
+    /// iteration; learning-fractals: Tu et al.'s whole recipe — their rotation–scale–rotation
+    /// maps drawn ∝ |det|, 50 × 300 points, summed Gaussians in the fixed window [−5, 5]², MSE,
+    /// Adam at 0.05 with clipping, halvings and weight noise; it replaces --param,
+    /// --supersample, --sigma, --trajectories and --length). `hybrid`
     /// from an EM start means `cold_hybrid` (τ₀ 0.02, noise 0.05), from a random one the
     /// paper's (τ₀ 1, noise 0.2).
     #[arg(long, default_value = "hybrid")]
@@ -132,7 +136,8 @@ fn config_from_flags(a: &Args) -> anyhow::Result<InversionConfig> {
     let mut strategy = match (a.strategy.as_str(), init) {
         // From an EM fit the paper's hot annealing would throw the fit away.
         ("hybrid", InitKind::Em) => StrategyConfig::new(&ColdHybridConfig::default()),
-        (name, _) => StrategyConfig::by_name(name)?,
+        // Command-line spelling with hyphens (`learning-fractals`) or underscores.
+        (name, _) => StrategyConfig::by_name(&name.replace('-', "_"))?,
     };
     if let Some(lr) = a.lr {
         let applied = strategy.update(|c: &mut AdamConfig| c.lr = lr)
@@ -156,7 +161,8 @@ fn config_from_flags(a: &Args) -> anyhow::Result<InversionConfig> {
     let parameterisation = match a.param.as_str() {
         "svd" => ParamKind::Svd,
         "naive" => ParamKind::Naive,
-        other => anyhow::bail!("unknown parameterisation `{other}`: use svd or naive"),
+        "rsr" => ParamKind::Rsr,
+        other => anyhow::bail!("unknown parameterisation `{other}`: use svd, naive or rsr"),
     };
     let cfg = InversionConfig {
         seed: a.seed,
@@ -184,6 +190,14 @@ fn config_from_flags(a: &Args) -> anyhow::Result<InversionConfig> {
         },
         loss: Default::default(),
         strategy,
+    };
+    // A baseline whose recipe is more than an optimiser: its parameterisation, renderer,
+    // generator and loss come with it (the flags for those are then not used).
+    let lf = ifslab_strategies::optim::learning_fractals::LearningFractalsConfig::KIND;
+    let cfg = if cfg.strategy.name() == lf {
+        cfg.with_learning_fractals_recipe()
+    } else {
+        cfg
     };
     cfg.validate()?;
     Ok(cfg)

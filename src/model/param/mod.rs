@@ -8,11 +8,15 @@
 //! - [`Naive`]: the six coefficients of each map, unconstrained.
 //! - [`Svd`]: `M = U·diag(sigmoid σ)·Vᵀ` with U, V re-orthonormalised and `b = tanh(raw)`;
 //!   every θ decodes to a contractive map (the chaotic-splatting paper's choice).
+//! - [`Rsr`]: `M = R(θ₁)·diag(sigmoid σ)·R(θ₂)·diag(sign d)`, raw offsets (Learning Fractals,
+//!   Tu et al., the Table 3 baseline).
 
 mod naive;
+mod rsr;
 mod svd;
 
 pub use naive::Naive;
+pub use rsr::Rsr;
 pub use svd::Svd;
 
 use serde::{Deserialize, Serialize};
@@ -71,6 +75,8 @@ pub enum ParamKind {
     /// [`Svd`].
     #[default]
     Svd,
+    /// [`Rsr`].
+    Rsr,
 }
 
 impl ParamKind {
@@ -79,6 +85,7 @@ impl ParamKind {
         match self {
             ParamKind::Naive => Box::new(Naive),
             ParamKind::Svd => Box::new(Svd::default()),
+            ParamKind::Rsr => Box::new(Rsr),
         }
     }
 }

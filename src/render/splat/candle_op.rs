@@ -19,7 +19,7 @@ use std::sync::Mutex;
 use candle_core::backend::BackendStorage;
 use candle_core::{CpuStorage, CustomOp1, DType, Device, Layout, Shape, Tensor};
 
-use super::{SplatConfig, SplatTape, backward, forward};
+use super::{SplatConfig, SplatTape, backward, forward_with_probabilities};
 use crate::model::affine::Affine2;
 use crate::model::diff_map::{DiffMap2, flat_params, param_offsets};
 
@@ -40,6 +40,7 @@ enum Maps<M> {
 pub struct SplatOp<M: DiffMap2 = Affine2> {
     cfg: SplatConfig,
     seed: u64,
+    probs: Option<Vec<f64>>,
     maps: Maps<M>,
     state: Mutex<Option<(Vec<M>, Tape)>>,
 }
@@ -58,6 +59,7 @@ impl<M: DiffMap2> SplatOp<M> {
         SplatOp {
             cfg,
             seed,
+            probs: None,
             maps: Maps::Uniform(prototype),
             state: Mutex::new(None),
         }
@@ -69,9 +71,16 @@ impl<M: DiffMap2> SplatOp<M> {
         SplatOp {
             cfg,
             seed,
+            probs: None,
             maps: Maps::Given(maps),
             state: Mutex::new(None),
         }
+    }
+
+    /// The same op with the chaos game drawing map `i` with probability `probs[i]`.
+    pub fn with_probabilities(mut self, probs: Vec<f64>) -> Self {
+        self.probs = Some(probs);
+        self
     }
 
     /// The maps the argument `v` (with dimensions `dims`) describes.
@@ -165,12 +174,24 @@ impl<M: DiffMap2> CustomOp1 for SplatOp<M> {
             CpuStorage::F32(v) => {
                 let flat: Vec<f64> = contiguous(v, layout)?.iter().map(|&x| x as f64).collect();
                 let maps = self.decode(&flat, dims)?;
-                let (img, tape) = forward::<f32>(&self.cfg, &maps, self.seed).map_err(to_candle)?;
+                let (img, tape) = forward_with_probabilities::<f32>(
+                    &self.cfg,
+                    &maps,
+                    self.probs.as_deref(),
+                    self.seed,
+                )
+                .map_err(to_candle)?;
                 (CpuStorage::F32(img), maps, Tape::F32(tape))
             }
             CpuStorage::F64(v) => {
                 let maps = self.decode(contiguous(v, layout)?, dims)?;
-                let (img, tape) = forward::<f64>(&self.cfg, &maps, self.seed).map_err(to_candle)?;
+                let (img, tape) = forward_with_probabilities::<f64>(
+                    &self.cfg,
+                    &maps,
+                    self.probs.as_deref(),
+                    self.seed,
+                )
+                .map_err(to_candle)?;
                 (CpuStorage::F64(img), maps, Tape::F64(tape))
             }
             other => {

@@ -169,6 +169,17 @@ pub fn forward<T: SplatReal>(
     maps: &[impl DiffMap2],
     seed: u64,
 ) -> Result<(Vec<T>, SplatTape<T>)> {
+    forward_with_probabilities(cfg, maps, None, seed)
+}
+
+/// [`forward`] with the chaos game drawing map `i` with probability `probs[i]` (uniform when
+/// `None`, as the paper's generator does; Learning Fractals draws ∝ |det|).
+pub fn forward_with_probabilities<T: SplatReal>(
+    cfg: &SplatConfig,
+    maps: &[impl DiffMap2],
+    probs: Option<&[f64]>,
+    seed: u64,
+) -> Result<(Vec<T>, SplatTape<T>)> {
     cfg.validate()?;
     if maps.is_empty() {
         return Err(Error::Empty("the code has no maps".into()));
@@ -177,7 +188,7 @@ pub fn forward<T: SplatReal>(
         return Err(Error::param("maps", "at most 65535 maps"));
     }
     check_finite_params(&flat_params(maps), &param_offsets(maps))?;
-    let tape = trajectories::run(&cfg.game, maps, seed)?;
+    let tape = trajectories::run(&cfg.game, maps, probs, seed)?;
     let kept = tape.kept_points();
     let frame = frame::fit(
         &cfg.framing,

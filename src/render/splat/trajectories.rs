@@ -32,10 +32,27 @@ pub struct TrajectoryTape {
     pub maps: usize,
 }
 
-/// Runs the game with uniform map probabilities, seeded by `seed`.
-pub fn run<M: Map2>(game: &ChaosGame, maps: &[M], seed: u64) -> Result<TrajectoryTape> {
+/// Runs the game seeded by `seed`, drawing maps with probabilities `probs` (uniform when
+/// `None`). The probabilities are not differentiated: they only decide which map each step
+/// applies.
+pub fn run<M: Map2>(
+    game: &ChaosGame,
+    maps: &[M],
+    probs: Option<&[f64]>,
+    seed: u64,
+) -> Result<TrajectoryTape> {
     let (b, l) = (game.trajectories, game.length);
-    let sampler = MapSampler::uniform(maps.len());
+    let sampler = match probs {
+        Some(p) if p.len() != maps.len() => {
+            return Err(Error::Shape(format!(
+                "{} probabilities for {} maps",
+                p.len(),
+                maps.len()
+            )));
+        }
+        Some(p) => MapSampler::new(p)?,
+        None => MapSampler::uniform(maps.len()),
+    };
     let mut states = vec![[0.0; 2]; b * (l + 1)];
     let mut indices = vec![0u16; b * l];
     let hw = game.start_half_width;

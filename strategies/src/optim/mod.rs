@@ -9,6 +9,7 @@ pub mod cuckoo;
 pub mod evolutionary;
 pub mod gd;
 pub mod hybrid;
+pub mod learning_fractals;
 pub mod noisy;
 pub mod swarm;
 #[cfg(test)]

@@ -65,6 +65,28 @@ pub struct ModelConfig {
     pub init_code: Option<String>,
     /// Standard deviation of Gaussian noise added to the initial θ.
     pub init_noise: f64,
+    /// How the chaos game of the differentiable renderer picks maps: `uniform` (the
+    /// chaotic-splatting paper's generator) or `determinant` (∝ |det M|, no floor: Learning
+    /// Fractals). Evaluation renders always use |det| with a 1% floor.
+    #[serde(skip_serializing_if = "MapProbabilities::is_uniform")]
+    pub probabilities: MapProbabilities,
+}
+
+/// How the differentiable renderer's chaos game picks maps.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MapProbabilities {
+    /// Every map equally likely.
+    #[default]
+    Uniform,
+    /// Proportional to |det M| (uniform if every determinant is 0).
+    Determinant,
+}
+
+impl MapProbabilities {
+    fn is_uniform(&self) -> bool {
+        *self == MapProbabilities::Uniform
+    }
 }
 
 impl ModelConfig {
@@ -97,6 +119,7 @@ impl Default for ModelConfig {
             init_seed: None,
             init_code: None,
             init_noise: 0.0,
+            probabilities: MapProbabilities::Uniform,
         }
     }
 }
@@ -148,6 +171,14 @@ pub struct RendererConfig {
     /// loss prefer slightly shrunken maps). Unset: σ stays `sigma`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sigma_final: Option<f64>,
+    /// Clamp the rendered image to [0, 1] (Learning Fractals sums its Gaussians with
+    /// `blend = "additive"`, then clamps).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub clamp: bool,
+    /// A fixed window `[x_min, y_min, x_max, y_max]` of the plane instead of fitting the
+    /// points (Learning Fractals draws [−5, 5]²); points outside it are not drawn.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub window: Option<[f64; 4]>,
 }
 
 impl Default for RendererConfig {
@@ -162,6 +193,8 @@ impl Default for RendererConfig {
             blend: Blend::Coverage,
             alpha_max: 0.99,
             sigma_final: None,
+            clamp: false,
+            window: None,
         }
     }
 }
@@ -346,6 +379,46 @@ fn in_section<T>(section: &str, r: Result<T>) -> Result<T> {
 }
 
 impl InversionConfig {
+    /// The same config with Learning Fractals' recipe (Tu et al.; facts from the authors'
+    /// `deep_fractal.py` and `run_reconstruct.sh`): rotation–scale–rotation maps drawn ∝ |det|,
+    /// 50 sequences of 300 points a step (here each after 10 warm-up steps from a random start,
+    /// where theirs start at map 0's fixed point), Gaussians `exp(−d²)` (σ = 1/√2 pixel) summed
+    /// and clamped to 1 in the fixed window [−5, 5]², plain MSE, and their optimiser
+    /// ([`crate::optim::learning_fractals`]). The target and its size, the number of maps, the
+    /// start and the iterations are left as they are.
+    pub fn with_learning_fractals_recipe(mut self) -> Self {
+        use crate::optim::learning_fractals::LearningFractalsConfig;
+        self.model.parameterisation = ParamKind::Rsr;
+        self.model.probabilities = MapProbabilities::Determinant;
+        self.generator.trajectories = 50;
+        self.generator.length = 310;
+        self.generator.warmup = 10;
+        self.renderer = RendererConfig {
+            supersample: 1,
+            sigma: std::f64::consts::FRAC_1_SQRT_2,
+            radius: 4.0,
+            blend: Blend::Additive,
+            clamp: true,
+            window: Some([-5.0, -5.0, 5.0, 5.0]),
+            ..RendererConfig::default()
+        };
+        self.loss = LossConfig {
+            msmse_weight: 1.0,
+            msmse_levels: 0,
+            dssim_weight: 0.0,
+            lpips_weight: 0.0,
+            moments_weight: 0.0,
+            regulariser: ifslab::loss::Regulariser {
+                scale_weight: 0.0,
+                condition_weight: 0.0,
+                ..self.loss.regulariser
+            },
+            ..self.loss
+        };
+        self.strategy = StrategyConfig::new(&LearningFractalsConfig::default());
+        self
+    }
+
     /// Parses TOML; an unknown or mistyped field is an error that names it.
     pub fn from_toml(text: &str, origin: &Path) -> Result<Self> {
         let cfg: InversionConfig = toml::from_str(text).map_err(|e| Error::file(origin, e))?;
@@ -517,7 +590,13 @@ impl InversionConfig {
             blend: r.blend,
             alpha_max: r.alpha_max,
             game: self.game(),
-            framing: SplatFraming::default(),
+            framing: match r.window {
+                Some([x0, y0, x1, y1]) => SplatFraming::Window(ifslab::model::Framing {
+                    min: [x0, y0],
+                    max: [x1, y1],
+                }),
+                None => SplatFraming::default(),
+            },
         }
     }
 }

@@ -24,7 +24,9 @@ pub mod target;
 pub use config::{InitKind, InversionConfig, StrategyConfig, TargetConfig};
 pub use init::initial_theta;
 pub use landscape::{Directions, Landscape, LandscapeConfig, landscape};
-pub use model::{AffineModel, AnyModel, ImageModel, MODELS, SimilitudeModel, find_model};
+pub use model::{
+    AffineModel, AnyModel, DrawOptions, ImageModel, MODELS, SimilitudeModel, find_model,
+};
 pub use problem::ImageProblem;
 pub use run::{InversionOutcome, SELECTION_STREAMS, Selection, ensure_new_run_dir, run_inversion};
 pub use target::{

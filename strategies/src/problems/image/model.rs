@@ -56,11 +56,18 @@ pub trait AnyModel: Send + Sync {
         theta: &[f64],
         splat: SplatConfig,
         seed: u64,
+        draw: &DrawOptions,
         objective: &Objective,
     ) -> Result<(LossBreakdown, Vec<f64>)>;
 
     /// The splat render of θ (no gradient).
-    fn render(&self, theta: &[f64], splat: &SplatConfig, seed: u64) -> Result<Vec<f32>>;
+    fn render(
+        &self,
+        theta: &[f64],
+        splat: &SplatConfig,
+        seed: u64,
+        draw: &DrawOptions,
+    ) -> Result<Vec<f32>>;
 
     /// The loss terms of a render `pred` of θ (the regulariser sees θ's maps).
     fn breakdown(
@@ -83,6 +90,17 @@ pub trait AnyModel: Send + Sync {
     fn n_maps(&self, theta: &[f64]) -> Result<usize>;
 }
 
+/// What a splat render of θ needs beyond its [`SplatConfig`]: the chaos game's map
+/// probabilities (uniform when `None`) and whether the image is clamped to [0, 1] (Learning
+/// Fractals sums Gaussians, then clamps).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DrawOptions {
+    /// Probability of each map in the chaos game.
+    pub probs: Option<Vec<f64>>,
+    /// Clamp the rendered image to [0, 1].
+    pub clamp: bool,
+}
+
 fn tensor_err(e: candle_core::Error) -> Error {
     Error::Core(ifslab::Error::from(e))
 }
@@ -93,6 +111,7 @@ impl<M: ImageModel> AnyModel for M {
         theta: &[f64],
         splat: SplatConfig,
         seed: u64,
+        draw: &DrawOptions,
         objective: &Objective,
     ) -> Result<(LossBreakdown, Vec<f64>)> {
         let maps = self.decode(theta)?;
@@ -102,8 +121,14 @@ impl<M: ImageModel> AnyModel for M {
                 .map_err(tensor_err)?,
         )
         .map_err(tensor_err)?;
-        let op = SplatOp::with_maps(splat, seed, maps.clone());
-        let pred = var.as_tensor().apply_op1(op).map_err(tensor_err)?;
+        let mut op = SplatOp::with_maps(splat, seed, maps.clone());
+        if let Some(p) = &draw.probs {
+            op = op.with_probabilities(p.clone());
+        }
+        let mut pred = var.as_tensor().apply_op1(op).map_err(tensor_err)?;
+        if draw.clamp {
+            pred = pred.clamp(0f32, 1f32).map_err(tensor_err)?;
+        }
         let ev = objective.evaluate_params(&pred, &maps)?;
         let grads = ev.image_total.backward().map_err(tensor_err)?;
         let mut g: Vec<f64> = match grads.get(var.as_tensor()) {
@@ -119,9 +144,20 @@ impl<M: ImageModel> AnyModel for M {
         Ok((ev.breakdown, self.backward(theta, &g)?))
     }
 
-    fn render(&self, theta: &[f64], splat: &SplatConfig, seed: u64) -> Result<Vec<f32>> {
+    fn render(
+        &self,
+        theta: &[f64],
+        splat: &SplatConfig,
+        seed: u64,
+        draw: &DrawOptions,
+    ) -> Result<Vec<f32>> {
         let maps = self.decode(theta)?;
-        Ok(splat::forward::<f32>(splat, &maps, seed)?.0)
+        let mut img =
+            splat::forward_with_probabilities::<f32>(splat, &maps, draw.probs.as_deref(), seed)?.0;
+        if draw.clamp {
+            img.iter_mut().for_each(|v| *v = v.min(1.0));
+        }
+        Ok(img)
     }
 
     fn breakdown(

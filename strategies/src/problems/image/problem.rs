@@ -13,7 +13,9 @@ use crate::driver::{Differentiable, Evaluation};
 use crate::error::{Error, Result};
 use crate::optim::annealing::Anneal;
 use crate::problems::image::config::InversionConfig;
-use crate::problems::image::model::AnyModel;
+use crate::problems::image::config::MapProbabilities;
+use crate::problems::image::model::{AnyModel, DrawOptions};
+use ifslab::model::ProbabilityRule;
 
 /// Names of the logged loss terms, in column order.
 pub const TERMS: [&str; 5] = ["msmse", "dssim", "lpips", "moments", "regulariser"];
@@ -28,6 +30,10 @@ pub struct ImageProblem {
     seed: u64,
     /// `(σ at t = T, T)` when σ follows a schedule.
     sigma_schedule: Option<(f64, u64)>,
+    /// How the chaos game picks maps.
+    probabilities: MapProbabilities,
+    /// Clamp renders to [0, 1].
+    clamp: bool,
 }
 
 impl ImageProblem {
@@ -62,19 +68,23 @@ impl ImageProblem {
             anneal_mse,
             seed,
             sigma_schedule: None,
+            probabilities: MapProbabilities::Uniform,
+            clamp: false,
         })
     }
 
     /// The problem `cfg` describes (parameterisation, renderer with its σ schedule, loss,
     /// seed) for `target`.
     pub fn from_config(cfg: &InversionConfig, target: Vec<f32>) -> Result<Self> {
-        let p = ImageProblem::new(
+        let mut p = ImageProblem::new(
             cfg.model.build()?,
             cfg.splat_config(),
             cfg.loss.clone(),
             target,
             cfg.seed,
         )?;
+        p.probabilities = cfg.model.probabilities;
+        p.clamp = cfg.renderer.clamp;
         match cfg.renderer.sigma_final {
             Some(end) => p.with_sigma_schedule(end, cfg.iterations),
             None => Ok(p),
@@ -144,8 +154,35 @@ impl ImageProblem {
     }
 
     fn render_at(&self, theta: &[f64], stream: u64, frac: f64) -> Result<Vec<f32>> {
-        self.model
-            .render(theta, &self.splat_at(frac), mix_seed(self.seed, stream))
+        self.model.render(
+            theta,
+            &self.splat_at(frac),
+            mix_seed(self.seed, stream),
+            &self.draw_options(theta)?,
+        )
+    }
+
+    /// The map probabilities and clamping of a render of θ.
+    fn draw_options(&self, theta: &[f64]) -> Result<DrawOptions> {
+        let probs = match self.probabilities {
+            MapProbabilities::Uniform => None,
+            MapProbabilities::Determinant => {
+                let dets: Vec<f64> = self
+                    .model
+                    .affine_maps(theta)?
+                    .iter()
+                    .map(|m| m.det().abs())
+                    .collect();
+                // ∝ |det| with no floor; all-degenerate maps fall back to uniform.
+                (dets.iter().sum::<f64>() > 0.0)
+                    .then(|| ProbabilityRule::Determinant { floor: 0.0 }.resolve(&dets))
+                    .transpose()?
+            }
+        };
+        Ok(DrawOptions {
+            probs,
+            clamp: self.clamp,
+        })
     }
 
     /// The objective's terms at θ on random stream `stream`, without a gradient (for loss
@@ -168,6 +205,7 @@ impl Differentiable for ImageProblem {
             theta,
             self.splat_at(self.progress(iter)).into_owned(),
             mix_seed(self.seed, iter),
+            &self.draw_options(theta)?,
             &self.objective,
         )?;
         let terms = [b.msmse, b.dssim, b.lpips, b.moments, b.regulariser]
