@@ -651,6 +651,32 @@ fn the_chaotic_splatting_sweep_is_the_protocol_its_results_ran() {
     assert!(p.retain(&[("group".into(), "nope".into())]).is_err());
 }
 
+/// Table 3 and Table 4 of the chaotic-splatting paper are sweeps over the random suite, and
+/// the committed medium-tier runs are finished runs of Table 3 (their ids are the runs'
+/// resolved configs), which `collect` merges whole.
+#[test]
+fn the_table_sweeps_expand_and_their_committed_runs_are_theirs() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let repro = root.join("paper_repro/chaotic_splatting");
+    let t3 = Plan::load(&repro.join("table3.toml")).unwrap();
+    assert_eq!(t3.runs.len(), 8 * 100);
+    let t4 = Plan::load(&repro.join("table4.toml")).unwrap();
+    assert_eq!(t4.runs.len(), 11 * 50);
+    // The Table 4 baseline row is Table 3's paper recipe: the same runs, the same ids.
+    assert_eq!(t3.runs[0].id, t4.runs[0].id);
+    let done = repro.join("results/table3_medium");
+    let c = collect(&done).unwrap();
+    assert_eq!(c.counts(), (40, 0, 0, 0));
+    let ids: std::collections::HashSet<&str> = t3.runs.iter().map(|r| r.id.as_str()).collect();
+    for e in std::fs::read_dir(done.join("runs")).unwrap() {
+        let name = e.unwrap().file_name().to_string_lossy().into_owned();
+        assert!(
+            ids.contains(name.as_str()),
+            "{name} is not a run of table3.toml"
+        );
+    }
+}
+
 #[test]
 fn the_ifs_em_sweeps_are_its_committed_results_and_a_rerun_reproduces_one() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");

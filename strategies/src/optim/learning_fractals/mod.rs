@@ -197,11 +197,7 @@ impl<O: Differentiable> Solver<O, GradState> for LearningFractals {
         }
         let grad_norm = self.clip(&mut eval.grad);
         // Halved after every `T / halvings` steps: iterations 1..=T/4 at lr, and so on.
-        let period = if c.halvings == 0 {
-            u64::MAX
-        } else {
-            (big_t / c.halvings).max(1)
-        };
+        let period = big_t.checked_div(c.halvings).map_or(u64::MAX, |p| p.max(1));
         let scale = 0.5f64.powi((t / period).min(1000) as i32);
         self.adam
             .step_scaled(&mut theta, &eval.grad, scale)

@@ -671,7 +671,7 @@ mod tests {
         assert!(e("iterations = 5\n[target]\n").contains("[target]"));
         assert!(
             e("iterations = 5\n[target]\ncode = \"fern\"\nimage = \"x.png\"\n")
-                .contains("not both")
+                .contains("not several")
         );
         assert!(e("this is = = not toml").contains("c.toml"));
     }
