@@ -25,8 +25,8 @@ pub const START_FILE: &str = "start.json";
 /// What an inversion produced.
 #[derive(Clone, Debug)]
 pub struct InversionOutcome {
-    /// The θ the run returns: of the last iterate and the best one the run saw, whichever
-    /// scores lower on fixed random streams ([`Selection`]).
+    /// The θ the run returns: of the last iterate, the best one the run recorded and the
+    /// start, whichever scores lowest on fixed random streams ([`Selection`]).
     pub theta: Vec<f64>,
     /// Final maps (θ decoded).
     pub maps: Vec<Affine2>,
