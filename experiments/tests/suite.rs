@@ -152,3 +152,124 @@ fn a_run_on_a_suite_code_is_scored_on_its_views() {
         );
     }
 }
+
+/// The suite's ground truths against another program's renders of the same codes:
+/// `flam3-render` (Draves' flam3, a chaos game written independently of this project),
+/// given each code as a flame of linear transforms with the code's probabilities as weights
+/// and the view's window as its camera. A pixel is foreground in either picture when any
+/// point landed in it; the masks must agree (IoU ≥ 0.9 on the full view and on a 2× patch)
+/// — a wrong window, a flipped axis, a wrong probability or a skipped map in the suite's
+/// renderer would not. Needs flam3-render, which scripts/test.sh installs: without it this
+/// test fails rather than pass unchecked.
+#[test]
+fn suite_truths_agree_with_flam3_renders_of_the_same_codes() {
+    use ifslab::model::flame::{flame_from_affine, write_flames};
+    use ifslab::render::image_io::load_grey;
+    use std::process::Command;
+
+    assert!(
+        Command::new("flam3-render")
+            .arg("--version")
+            .output()
+            .is_ok(),
+        "flam3-render is not installed: `apt-get install flam3-utils flam3-palette` \
+         (scripts/test.sh does it); this test checks the suite's truths against it"
+    );
+    let tmp = tempfile::tempdir().unwrap();
+    let m = smoke(tmp.path(), 3);
+    let size = m.spec.tier.size();
+    for c in &m.codes {
+        let code = IfsCode::load(tmp.path().join(&c.code)).unwrap();
+        let maps = code.affine2().unwrap();
+        let probs = code.evaluation_probabilities().unwrap();
+        let [ww, wh] = c.window.size();
+        // The full view and the least-zoomed patch (flam3 draws the whole attractor, so a
+        // patch zoomed f× needs f² times the samples for the same points in view).
+        let patch = c.views[1..]
+            .iter()
+            .min_by(|a, b| a.factor.total_cmp(&b.factor))
+            .unwrap();
+        for v in [&c.views[0], patch] {
+            let mut flame =
+                flame_from_affine(None, &maps, &probs, [size as u32, size as u32]).unwrap();
+            // One colour for every map, the palette's white end: flam3 pictures colour, and
+            // a point coloured near the grey palette's black end would vanish in the mask.
+            for x in &mut flame.xforms {
+                x.color = 1.0;
+            }
+            flame.center = [
+                c.window.min[0] + v.center[0] * ww,
+                c.window.min[1] + v.center[1] * wh,
+            ];
+            flame.scale = size as f64 * v.factor / ww;
+            flame.quality = 400.0 * v.factor * v.factor;
+            flame.supersample = 1;
+            flame.estimator_radius = 0.0;
+            flame.filter = 0.0;
+            flame.gamma = 1.0;
+            flame.brightness = 1000.0;
+            let dir = tmp.path().join(format!("flam3-{}-{}", c.index, v.name));
+            std::fs::create_dir_all(&dir).unwrap();
+            let (file, png) = (dir.join("code.flame"), dir.join("flam3.png"));
+            write_flames(&file, std::slice::from_ref(&flame)).unwrap();
+            let out = Command::new("flam3-render")
+                .env("in", &file)
+                .env("out", &png)
+                .env("nthreads", "1")
+                .env("isaac_seed", "1")
+                .env("verbose", "0")
+                .output()
+                .unwrap();
+            assert!(
+                out.status.success(),
+                "flam3-render: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            let theirs = load_grey(&png).unwrap();
+            let ours = load_grey(&tmp.path().join(&v.truth)).unwrap();
+            assert_eq!(
+                (theirs.width as usize, theirs.height as usize),
+                (size, size)
+            );
+            // flam3's camera has +y down: its row r is the suite's row size − 1 − r.
+            let mask_theirs: Vec<bool> = (0..size * size)
+                .map(|i| {
+                    let (r, x) = (i / size, i % size);
+                    theirs.values[(size - 1 - r) * size + x] > 0.0
+                })
+                .collect();
+            let mask_ours: Vec<bool> = ours.values.iter().map(|&p| p > 0.0).collect();
+            let iou = ifslab::metrics::iou(&mask_ours, &mask_theirs).unwrap();
+            let count = |m: &[bool]| m.iter().filter(|&&b| b).count();
+            let both = mask_ours
+                .iter()
+                .zip(&mask_theirs)
+                .filter(|(a, b)| **a && **b)
+                .count();
+            let covered = both as f64 / count(&mask_ours) as f64;
+            eprintln!(
+                "code {} view {} (×{:.2}): IoU {iou:.3}, {:.1} % of the truth's foreground \
+                 in flam3's",
+                c.index,
+                v.name,
+                v.factor,
+                100.0 * covered
+            );
+            assert!(
+                covered >= 0.95,
+                "code {} view {}: only {:.1} % of the truth's foreground is in flam3's picture",
+                c.index,
+                v.name,
+                100.0 * covered
+            );
+            assert!(
+                iou >= 0.9,
+                "code {} view {} (×{:.2}): the suite's truth and flam3-render's picture \
+                 share IoU {iou:.3} of their foreground",
+                c.index,
+                v.name,
+                v.factor
+            );
+        }
+    }
+}

@@ -659,7 +659,7 @@ fn the_table_sweeps_expand_and_their_committed_runs_are_theirs() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let repro = root.join("paper_repro/chaotic_splatting");
     let t3 = Plan::load(&repro.join("table3.toml")).unwrap();
-    assert_eq!(t3.runs.len(), 8 * 100);
+    assert_eq!(t3.runs.len(), 11 * 100);
     let t4 = Plan::load(&repro.join("table4.toml")).unwrap();
     assert_eq!(t4.runs.len(), 11 * 50);
     // The Table 4 baseline row is Table 3's paper recipe: the same runs, the same ids.

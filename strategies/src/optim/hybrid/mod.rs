@@ -8,16 +8,28 @@
 //! where it should be; the annealing phases let θ jump between those basins early, and Adam
 //! refines afterwards.
 //!
+//! The paper's phase ([`PhaseAcceptance::Proposals`]) judges each jump by the *raw* cost of
+//! the jumped-to code, before any refinement, against a code Adam has just refined: almost
+//! every jump looks worse, the Metropolis rule then accepts on temperature alone (a random
+//! walk), and the Adam iterations that follow start over from a worse code — the loss curve
+//! rises at every phase. [`PhaseAcceptance::Refined`] is basin hopping instead: the jump is
+//! judged *after* Adam has refined it, at the next phase, against the code it jumped from, on
+//! fixed random streams; a refined jump that is worse is undone.
+//!
 //! ## References
 //! - Djeacoumar et al., *Learning Image Fractals Using Chaotic Differentiable Point Splatting*.
 
 use argmin::core::{Error as ArgminError, KV, KvValue, Problem, Solver, State};
 use serde::{Deserialize, Serialize};
 
-use crate::driver::{Differentiable, GradState, Params};
+use rand::{Rng, SeedableRng};
+use rand_distr::StandardNormal;
+use rand_xoshiro::Xoshiro256PlusPlus;
+
+use crate::driver::{Differentiable, GradState, Params, to_argmin};
 use crate::error::{Error, Result};
 use crate::optim::adam::{Adam, AdamConfig, adam_iteration};
-use crate::optim::annealing::{Anneal, AnnealingConfig, metropolis_phase};
+use crate::optim::annealing::{Anneal, AnnealingConfig, PhaseStats, metropolis_phase};
 
 /// Hyper-parameters of the hybrid (defaults: the paper's).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -31,7 +43,33 @@ pub struct HybridConfig {
     pub anneal_every: u64,
     /// Fraction of the run during which phases happen (paper: the first half).
     pub anneal_fraction: f64,
+    /// What a phase's Metropolis test compares (paper: the raw proposals).
+    pub acceptance: PhaseAcceptance,
 }
+
+/// What an annealing phase's Metropolis test compares.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PhaseAcceptance {
+    /// The paper: `candidates` chained proposals from the current θ, each accepted or not on
+    /// its own raw cost (`exp(−scale·ΔMSE/τ)`), then Adam continues from where the chain
+    /// ended.
+    #[default]
+    Proposals,
+    /// Basin hopping (Wales & Doye 1997): a phase first compares the θ Adam has refined since
+    /// the last phase with the *anchor* (the refined θ that phase jumped from) on the fixed
+    /// [`ACCEPT_STREAMS`], accepting a worse one with probability `exp(−scale·r/τ)`, `r` its
+    /// relative cost increase — a rejected one is replaced by the anchor —, then jumps from
+    /// the anchor to the best of `candidates` independent proposals (raw cost, the phase's
+    /// stream). The last phase of the run only accepts or undoes; the refinement after it
+    /// starts from the anchor.
+    Refined,
+}
+
+/// The random streams on which [`PhaseAcceptance::Refined`] compares refined codes: fixed for
+/// the whole run, so two phases' costs differ only by the codes (and apart from the streams
+/// of gradient iterations, phases and the final selection).
+pub const ACCEPT_STREAMS: [u64; 2] = [u64::MAX - 11, u64::MAX - 12];
 
 impl Default for HybridConfig {
     fn default() -> Self {
@@ -43,6 +81,7 @@ impl Default for HybridConfig {
             },
             anneal_every: 250,
             anneal_fraction: 0.5,
+            acceptance: PhaseAcceptance::Proposals,
         }
     }
 }
@@ -119,6 +158,9 @@ pub struct Hybrid {
     seed: u64,
     phases: u64,
     accepted: u64,
+    /// [`PhaseAcceptance::Refined`]: the θ the last jump started from.
+    #[serde(default)]
+    anchor: Option<Vec<f64>>,
 }
 
 impl Hybrid {
@@ -135,6 +177,7 @@ impl Hybrid {
             seed,
             phases: 0,
             accepted: 0,
+            anchor: None,
         })
     }
 
@@ -151,6 +194,76 @@ impl Hybrid {
     /// How many annealing phases a whole run has.
     pub fn phase_count(&self) -> u64 {
         (1..self.max_iters).filter(|&t| self.anneals_at(t)).count() as u64
+    }
+
+    /// Whether `t` is the run's last phase.
+    fn is_last_phase(&self, t: u64) -> bool {
+        self.anneals_at(t) && (t + 1..self.max_iters).all(|u| !self.anneals_at(u))
+    }
+
+    /// A basin-hopping phase ([`PhaseAcceptance::Refined`]) at iteration `t`: accept or undo
+    /// the refinement since the last phase, then (unless it is the last phase) jump.
+    fn basin_hop<O: Anneal + Differentiable>(
+        &mut self,
+        problem: &mut Problem<O>,
+        theta: &mut Vec<f64>,
+        t: u64,
+        frac: f64,
+    ) -> Result<PhaseStats, ArgminError> {
+        let cfg = &self.config.annealing;
+        let mut rng =
+            Xoshiro256PlusPlus::seed_from_u64(ifslab::chaos::mix_seed(self.seed, t | (1 << 61)));
+        let cost_of = |problem: &mut Problem<O>, th: &[f64]| {
+            problem.problem("anneal_cost", |p| {
+                let mut sum = 0.0;
+                for s in ACCEPT_STREAMS {
+                    sum += p.anneal_cost(th, s, frac).map_err(to_argmin)?;
+                }
+                Ok(sum / ACCEPT_STREAMS.len() as f64)
+            })
+        };
+        let mut accepted = 0;
+        let mut cost = cost_of(problem, theta)?;
+        if let Some(anchor) = self.anchor.take() {
+            let anchor_cost = cost_of(problem, &anchor)?;
+            let tau = cfg.temperature * (1.0 - frac).max(0.0);
+            let rel = (cost - anchor_cost) / anchor_cost.abs().max(1e-12);
+            let u: f64 = rng.random();
+            let keep = cost.is_finite()
+                && (rel <= 0.0 || (tau > 0.0 && u < (-cfg.accept_scale * rel / tau).exp()));
+            if keep {
+                accepted += 1;
+            } else {
+                *theta = anchor;
+                cost = anchor_cost;
+            }
+        }
+        if !self.is_last_phase(t) {
+            self.anchor = Some(theta.clone());
+            let std = cfg.proposal.std(cfg.noise * (1.0 - frac).max(0.0));
+            let stream = t | (1 << 62);
+            let mut best: Option<(f64, Vec<f64>)> = None;
+            for _ in 0..cfg.candidates {
+                let mut cand: Vec<f64> = theta
+                    .iter()
+                    .map(|x| x + std * rng.sample::<f64, _>(StandardNormal))
+                    .collect();
+                problem.problem("project", |p| {
+                    p.project(&mut cand);
+                    Ok(())
+                })?;
+                let c = problem.problem("anneal_cost", |p| {
+                    p.anneal_cost(&cand, stream, frac).map_err(to_argmin)
+                })?;
+                if c.is_finite() && best.as_ref().is_none_or(|(b, _)| c < *b) {
+                    best = Some((c, cand));
+                }
+            }
+            if let Some((_, cand)) = best {
+                *theta = cand;
+            }
+        }
+        Ok(PhaseStats { accepted, cost })
     }
 }
 
@@ -173,14 +286,17 @@ impl<O: Anneal + Differentiable> Solver<O, GradState> for Hybrid {
             let frac = t as f64 / self.max_iters as f64;
             // Streams of annealing phases are kept apart from the gradient iterations'.
             let stream = t | (1 << 62);
-            let st = metropolis_phase(
-                problem,
-                &mut theta,
-                &self.config.annealing,
-                frac,
-                self.seed,
-                stream,
-            )?;
+            let st = match self.config.acceptance {
+                PhaseAcceptance::Proposals => metropolis_phase(
+                    problem,
+                    &mut theta,
+                    &self.config.annealing,
+                    frac,
+                    self.seed,
+                    stream,
+                )?,
+                PhaseAcceptance::Refined => self.basin_hop(problem, &mut theta, t, frac)?,
+            };
             self.phases += 1;
             self.accepted += st.accepted as u64;
             self.adam.reset();
@@ -199,6 +315,86 @@ impl<O: Anneal + Differentiable> Solver<O, GradState> for Hybrid {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::driver::Evaluation;
+
+    /// Σ x²/16 − ½·cos(2πx): a well at every integer, the deepest at 0 (−½ per coordinate).
+    struct Wells;
+
+    fn wells(x: &[f64]) -> f64 {
+        x.iter()
+            .map(|v| v * v / 16.0 - 0.5 * (std::f64::consts::TAU * v).cos())
+            .sum()
+    }
+
+    impl Differentiable for Wells {
+        fn evaluate(&self, x: &[f64], _iter: u64) -> Result<Evaluation> {
+            let grad = x
+                .iter()
+                .map(|v| v / 8.0 + std::f64::consts::PI * (std::f64::consts::TAU * v).sin())
+                .collect();
+            Ok(Evaluation {
+                loss: wells(x),
+                grad,
+                terms: vec![],
+            })
+        }
+    }
+
+    impl Anneal for Wells {
+        fn anneal_cost(&self, x: &[f64], _stream: u64, _frac: f64) -> Result<f64> {
+            Ok(wells(x))
+        }
+    }
+
+    /// Runs the hybrid on [`Wells`] from (3, −3) step by step: the final θ and the cost each
+    /// phase reported.
+    fn hop(acceptance: PhaseAcceptance, anneal: bool) -> (Vec<f64>, Vec<f64>) {
+        let iters = 400;
+        let cfg = HybridConfig {
+            adam: AdamConfig {
+                lr: 0.05,
+                ..AdamConfig::default()
+            },
+            annealing: AnnealingConfig {
+                noise: 1.0,
+                candidates: 10,
+                temperature: 1e-3,
+                ..AnnealingConfig::default()
+            },
+            anneal_every: 40,
+            anneal_fraction: if anneal { 0.8 } else { 0.0 },
+            acceptance,
+        };
+        let mut solver = Hybrid::new(cfg, iters, 5).unwrap();
+        let mut problem = Problem::new(Wells);
+        let mut state = GradState::new().param(vec![3.0, -3.0]);
+        let mut phase_costs = vec![];
+        for _ in 0..iters {
+            let (next, kv) = solver.next_iter(&mut problem, state).unwrap();
+            if let Some(KvValue::Float(c)) = kv.and_then(|kv| kv.get("anneal_mse").cloned()) {
+                phase_costs.push(c);
+            }
+            state = next;
+            state.increment_iter();
+        }
+        (state.take_param().unwrap(), phase_costs)
+    }
+
+    #[test]
+    fn basin_hopping_undoes_worse_jumps_and_finds_a_deeper_well() {
+        let (adam, _) = hop(PhaseAcceptance::Refined, false);
+        let (hopped, costs) = hop(PhaseAcceptance::Refined, true);
+        // Adam alone stays in the start's wells (near ±3).
+        assert!(
+            (adam[0] - 3.0).abs() < 0.1 && (adam[1] + 3.0).abs() < 0.1,
+            "{adam:?}"
+        );
+        // Each phase keeps the better of the refined jump and its anchor (τ ≈ 0): the costs
+        // the phases report never rise, and the run ends in deeper wells.
+        assert_eq!(costs.len(), 8);
+        assert!(costs.windows(2).all(|w| w[1] <= w[0] + 1e-12), "{costs:?}");
+        assert!(wells(&hopped) < -0.5, "{hopped:?} {costs:?}");
+    }
 
     fn hybrid(every: u64, iters: u64) -> Hybrid {
         let cfg = HybridConfig {
