@@ -7,9 +7,13 @@
 //! keeps the nodes whose bounding disk can come closer to the tile than the best guaranteed
 //! distance `U` found so far (a leaf's disk centre lies on its primitive, so the farthest
 //! tile corner from it bounds the distance from every pixel of the tile: `U` shrinks as
-//! leaves are met; children are visited nearest first). The tile's leaves are filtered the
-//! same way for each [`BLOCK`] × [`BLOCK`] block of its pixels and sorted by their distance
-//! bound, and each pixel scans its block's leaves until the bound exceeds its best distance. Nothing is stored per pixel and primitive:
+//! leaves are met; children are visited nearest first). A subtree whose disk is small next
+//! to its distance from the tile is kept whole rather than opened (far from the figure the
+//! tile's candidates would otherwise be every leaf of a ring as wide as the tile). The
+//! tile's candidates are filtered the same way for each [`BLOCK`] × [`BLOCK`] block of its
+//! pixels and sorted by their distance bound; each pixel scans its block's candidates until
+//! the bound exceeds its best distance, measuring leaves and descending kept subtrees with
+//! its own bound. Nothing is stored per pixel and primitive:
 //! memory is the tree plus a distance and an index per pixel. With a cut-off (`U` starts at
 //! it), words farther than the cut-off from a tile are never opened, and pixels with no
 //! primitive within it read `d = ∞` (pixel 0).
@@ -96,8 +100,9 @@ impl SdfView {
                 format!("an image needs pixels, got {}×{}", self.width, self.height),
             ));
         }
-        if !(self.pixel.is_finite() && self.pixel > 0.0)
-            || !self.origin.iter().all(|v| v.is_finite())
+        if !(self.pixel.is_finite()
+            && self.pixel > 0.0
+            && self.origin.iter().all(|v| v.is_finite()))
         {
             return Err(Error::param(
                 "view",
@@ -127,11 +132,11 @@ pub struct SdfRenderConfig {
 pub struct SdfStats {
     /// Leaf primitives (`m^K`).
     pub primitives: usize,
-    /// Leaves kept as candidates, summed over tiles.
+    /// Candidates (leaves and far-field subtrees) kept, summed over tiles.
     pub candidates: usize,
     /// Tiles.
     pub tiles: usize,
-    /// Leaves kept for the pixels of a block, summed over blocks.
+    /// Candidates kept for the pixels of a block, summed over blocks.
     pub block_candidates: usize,
     /// Blocks.
     pub blocks: usize,
@@ -171,22 +176,59 @@ fn rect_far(lo: [f64; 2], hi: [f64; 2], c: [f64; 2]) -> f64 {
     dx.hypot(dy)
 }
 
-/// Candidate leaves of one tile: `(lower bound, leaf)`, sorted.
+/// A candidate of a tile or block: `(lower bound of its distance, level, node)`; a node
+/// below the leaves' level stands for its whole subtree.
+type Cand = (f64, u32, u32);
+
+/// A node whose bounding radius is below this fraction of its distance to a tile is kept
+/// whole as a candidate (each pixel descends it with its own bound) instead of being
+/// opened for the tile: far from the figure a tile's candidates would otherwise be every
+/// leaf in a ring as wide as the tile.
+const FAR_FIELD: f64 = 0.25;
+
+/// An upper bound on the distance from any point of `lo..hi` to the primitives below node
+/// `(k, j)` (a leaf's disk centre lies on its primitive; below an inner node there is a
+/// primitive within its radius of its centre).
+#[inline(always)]
+fn node_far(tree: &WordTree, lo: [f64; 2], hi: [f64; 2], k: usize, j: usize) -> f64 {
+    let b = tree.bound(k, j);
+    let far = rect_far(lo, hi, [b[0], b[1]]);
+    if k == tree.depth() { far } else { far + b[2] }
+}
+
+/// `(lower bound, k, j)` of the children of node `(k, j)` seen from `lo..hi`, in `kids`.
+#[inline(always)]
+fn children(tree: &WordTree, lo: [f64; 2], hi: [f64; 2], k: usize, j: usize, kids: &mut Vec<Cand>) {
+    let m = tree.n_maps();
+    kids.clear();
+    for i in 0..m {
+        let c = j * m + i;
+        let b = tree.bound(k + 1, c);
+        kids.push((
+            (rect_dist(lo, hi, [b[0], b[1]]) - b[2]).max(0.0),
+            (k + 1) as u32,
+            c as u32,
+        ));
+    }
+    // Farthest first, so that the nearest is popped first (ties by index).
+    kids.sort_unstable_by(|x, y| y.0.total_cmp(&x.0).then(y.2.cmp(&x.2)));
+}
+
+/// Candidates of one tile (leaves, and far-field subtrees), sorted by lower bound.
 fn tile_candidates(
     tree: &WordTree,
     lo: [f64; 2],
     hi: [f64; 2],
     cap: f64,
     stack: &mut Vec<(u32, u32)>,
-    out: &mut Vec<(f64, u32)>,
+    kids: &mut Vec<Cand>,
+    out: &mut Vec<Cand>,
 ) {
     let depth = tree.depth();
-    let m = tree.n_maps();
     let mut best = cap;
     stack.clear();
     out.clear();
     stack.push((0, 0));
-    let mut kids: [(f64, u32); 16] = [(0.0, 0); 16];
     while let Some((k, j)) = stack.pop() {
         let (k, j) = (k as usize, j as usize);
         let b = tree.bound(k, j);
@@ -194,63 +236,112 @@ fn tile_candidates(
         if lb > best {
             continue;
         }
-        if k == depth {
-            out.push((lb, j as u32));
-            best = best.min(rect_far(lo, hi, [b[0], b[1]]));
+        if k == depth || b[2] < FAR_FIELD * lb {
+            out.push((lb, k as u32, j as u32));
+            best = best.min(node_far(tree, lo, hi, k, j));
             continue;
         }
-        // Children nearest first: pushed farthest first (ties by index, for determinism).
-        if m <= kids.len() {
-            for (i, kid) in kids.iter_mut().enumerate().take(m) {
-                let c = j * m + i;
-                let cb = tree.bound(k + 1, c);
-                *kid = (
-                    (rect_dist(lo, hi, [cb[0], cb[1]]) - cb[2]).max(0.0),
-                    c as u32,
-                );
-            }
-            let ks = &mut kids[..m];
-            ks.sort_unstable_by(|x, y| y.0.total_cmp(&x.0).then(y.1.cmp(&x.1)));
-            for &(_, c) in ks.iter() {
-                stack.push(((k + 1) as u32, c));
-            }
-        } else {
-            for i in (0..m).rev() {
-                stack.push(((k + 1) as u32, (j * m + i) as u32));
-            }
+        children(tree, lo, hi, k, j, kids);
+        for &(_, ck, c) in kids.iter() {
+            stack.push((ck, c));
         }
     }
     out.retain(|c| c.0 <= best);
-    out.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+    out.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2)));
 }
 
-/// The candidates of a tile that can be nearest for some pixel of the block `lo..hi`,
-/// sorted by their lower bound.
+/// The candidates of a tile that can hold the nearest primitive of some pixel of the block
+/// `lo..hi`, sorted by their lower bound.
 fn block_candidates(
     tree: &WordTree,
-    tile: &[(f64, u32)],
+    tile: &[Cand],
     lo: [f64; 2],
     hi: [f64; 2],
     cap: f64,
-    out: &mut Vec<(f64, u32)>,
+    out: &mut Vec<Cand>,
 ) {
-    let depth = tree.depth();
     out.clear();
     let mut best = cap;
-    for &(tlb, leaf) in tile {
+    for &(tlb, k, j) in tile {
         if tlb > best {
             break;
         }
-        let b = tree.bound(depth, leaf as usize);
+        let b = tree.bound(k as usize, j as usize);
         let lb = (rect_dist(lo, hi, [b[0], b[1]]) - b[2]).max(0.0);
         if lb > best {
             continue;
         }
-        out.push((lb, leaf));
-        best = best.min(rect_far(lo, hi, [b[0], b[1]]));
+        out.push((lb, k, j));
+        best = best.min(node_far(tree, lo, hi, k as usize, j as usize));
     }
     out.retain(|c| c.0 <= best);
-    out.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+    out.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2)));
+}
+
+/// The nearest primitive to `p` among the block's candidates, closer than `cap`: a leaf is
+/// measured, a subtree descended (its nearest child first, children that cannot beat the
+/// best distance so far dropped), anything whose disk is not closer than the best distance
+/// so far skipped.
+#[inline(always)]
+fn nearest(
+    tree: &WordTree,
+    kind: PrimitiveKind,
+    p: [f64; 2],
+    block: &[Cand],
+    cap: f64,
+    stack: &mut Vec<(u32, u32)>,
+    kids: &mut Vec<Cand>,
+) -> (f64, u32) {
+    let depth = tree.depth();
+    let leaves = tree.leaves();
+    let mut best = cap;
+    let mut who = NONE;
+    for &(lb, k, j) in block {
+        if lb >= best {
+            break;
+        }
+        stack.clear();
+        stack.push((k, j));
+        while let Some((k, j)) = stack.pop() {
+            let (k, j) = (k as usize, j as usize);
+            let b = tree.bound(k, j);
+            if (p[0] - b[0]).hypot(p[1] - b[1]) - b[2] >= best {
+                continue;
+            }
+            if k == depth {
+                let [a, bb] = leaves[j];
+                let d = distance(kind, p, a, bb);
+                if d < best {
+                    best = d;
+                    who = j as u32;
+                }
+                continue;
+            }
+            // Children whose disks can still beat `best`, the nearest pushed last (popped
+            // first); ties by index.
+            let m = tree.n_maps();
+            kids.clear();
+            for i in 0..m {
+                let c = j * m + i;
+                let cb = tree.bound(k + 1, c);
+                let lb = (p[0] - cb[0]).hypot(p[1] - cb[1]) - cb[2];
+                if lb < best {
+                    kids.push((lb, (k + 1) as u32, c as u32));
+                }
+            }
+            if kids.len() > 1 {
+                let near = (0..kids.len())
+                    .min_by(|&x, &y| kids[x].0.total_cmp(&kids[y].0).then(x.cmp(&y)))
+                    .unwrap_or(0);
+                let last = kids.len() - 1;
+                kids.swap(near, last);
+            }
+            for &(_, ck, c) in kids.iter() {
+                stack.push((ck, c));
+            }
+        }
+    }
+    (best, who)
 }
 
 impl SdfRaster {
@@ -258,7 +349,7 @@ impl SdfRaster {
     pub fn render(pattern: &Pattern, view: &SdfView, cfg: &SdfRenderConfig) -> Result<Self> {
         view.validate()?;
         if let Some(c) = cfg.cutoff
-            && !(c > 0.0)
+            && !(c.is_finite() && c > 0.0)
         {
             return Err(Error::param(
                 "cutoff",
@@ -272,7 +363,6 @@ impl SdfRaster {
         let mut dist = vec![f64::INFINITY; w * h];
         let mut arg = vec![NONE; w * h];
         let leaves = tree.leaves();
-        let depth = tree.depth();
         let counts: Vec<(usize, usize, usize, usize)> = dist
             .par_chunks_mut(TILE * w)
             .zip(arg.par_chunks_mut(TILE * w))
@@ -281,6 +371,7 @@ impl SdfRaster {
                 let i0 = band * TILE;
                 let rows = dband.len() / w;
                 let mut stack = Vec::new();
+                let mut kids = Vec::new();
                 let mut cands = Vec::new();
                 let mut block = Vec::new();
                 let (mut n_cand, mut n_tiles, mut n_block, mut n_blocks) = (0, 0, 0, 0);
@@ -295,7 +386,7 @@ impl SdfRaster {
                 for j0 in (0..w).step_by(TILE) {
                     let cols = TILE.min(w - j0);
                     let (lo, hi) = span(i0, j0, rows, cols);
-                    tile_candidates(&tree, lo, hi, cap, &mut stack, &mut cands);
+                    tile_candidates(&tree, lo, hi, cap, &mut stack, &mut kids, &mut cands);
                     n_cand += cands.len();
                     n_tiles += 1;
                     for bi in (0..rows).step_by(BLOCK) {
@@ -309,23 +400,8 @@ impl SdfRaster {
                             for di in bi..bi + brows {
                                 for dj in j0 + bj..j0 + bj + bcols {
                                     let p = view.centre(i0 + di, dj);
-                                    let mut best = cap;
-                                    let mut who = NONE;
-                                    for &(lb, leaf) in &block {
-                                        if lb >= best {
-                                            break;
-                                        }
-                                        let b = tree.bound(depth, leaf as usize);
-                                        if (p[0] - b[0]).hypot(p[1] - b[1]) - b[2] >= best {
-                                            continue;
-                                        }
-                                        let [a, bb] = leaves[leaf as usize];
-                                        let d = distance(kind, p, a, bb);
-                                        if d < best {
-                                            best = d;
-                                            who = leaf;
-                                        }
-                                    }
+                                    let (best, who) =
+                                        nearest(&tree, kind, p, &block, cap, &mut stack, &mut kids);
                                     if who != NONE {
                                         dband[di * w + dj] = best / view.pixel;
                                         aband[di * w + dj] = who;

@@ -51,15 +51,12 @@ pub fn initial_points(
             let map = ifslab::model::segment::SegmentMap::between(a, b, l0, l1)
                 .ok_or_else(|| Error::InvalidInput("the base segment has zero length".into()))?;
             pts.iter()
-                .flat_map(|p| {
-                    let q = match init {
-                        SdfInit::Line => {
-                            let s = ((p[0] - a[0]) * e[0] + (p[1] - a[1]) * e[1]) / e2;
-                            [l0[0] + s * (l1[0] - l0[0]), l0[1] + s * (l1[1] - l0[1])]
-                        }
-                        _ => ifslab::model::Map2::apply(&map, *p),
-                    };
-                    q
+                .flat_map(|p| match init {
+                    SdfInit::Line => {
+                        let s = ((p[0] - a[0]) * e[0] + (p[1] - a[1]) * e[1]) / e2;
+                        [l0[0] + s * (l1[0] - l0[0]), l0[1] + s * (l1[1] - l0[1])]
+                    }
+                    _ => ifslab::model::Map2::apply(&map, *p),
                 })
                 .collect()
         }
