@@ -44,6 +44,12 @@ pub struct FitArgs {
     /// Width σ of the drawn figure in pixels.
     #[arg(long, default_value_t = 1.5)]
     pub sigma: f64,
+    /// Coarse to fine: σ at the first iteration, shrinking geometrically to --sigma.
+    #[arg(long)]
+    pub sigma_start: Option<f64>,
+    /// 2×2 poolings of the multi-scale MSE after the full-resolution level.
+    #[arg(long, default_value_t = 4)]
+    pub levels: usize,
     /// Iterations.
     #[arg(long, default_value_t = 300)]
     pub iterations: u64,
@@ -101,6 +107,8 @@ fn fit(a: FitArgs) -> anyhow::Result<()> {
     cfg.depth = a.depth;
     cfg.size = a.size;
     cfg.sigma = a.sigma;
+    cfg.sigma_start = a.sigma_start;
+    cfg.loss.levels = a.levels;
     cfg.iterations = a.iterations;
     cfg.seed = a.seed;
     cfg.loss.distance = a.distance_weight;

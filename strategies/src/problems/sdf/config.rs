@@ -50,6 +50,10 @@ pub struct SdfConfig {
     /// Width σ of the drawn figure, in pixels (`exp(−d²/σ²)`).
     #[serde(default = "default_sigma")]
     pub sigma: f64,
+    /// Coarse to fine: σ at the first iteration, shrinking geometrically to `sigma` at the
+    /// last (absent: `sigma` throughout, as the paper).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma_start: Option<f64>,
     /// Optimisation iterations.
     #[serde(default = "default_iterations")]
     pub iterations: u64,
@@ -108,6 +112,7 @@ impl SdfConfig {
             size: default_size(),
             depth: default_depth(),
             sigma: default_sigma(),
+            sigma_start: None,
             iterations: default_iterations(),
             seed: 0,
             checkpoint_every: default_checkpoint_every(),
@@ -178,6 +183,14 @@ impl SdfConfig {
             return Err(Error::param(
                 "sigma",
                 format!("must be > 0 pixels, got {}", self.sigma),
+            ));
+        }
+        if let Some(s0) = self.sigma_start
+            && !(s0.is_finite() && s0 > 0.0)
+        {
+            return Err(Error::param(
+                "sigma_start",
+                format!("must be > 0 pixels, got {s0}"),
             ));
         }
         if !(self.init.jitter.is_finite() && self.init.jitter >= 0.0) {

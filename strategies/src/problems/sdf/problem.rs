@@ -76,6 +76,8 @@ pub struct SdfProblem {
     view: SdfView,
     render: SdfRenderConfig,
     sigma: f64,
+    /// `(σ at iteration 0, T)` when σ shrinks over the run.
+    sigma_schedule: Option<(f64, u64)>,
     loss: SdfLossConfig,
     target: Vec<f64>,
     /// The target's distance transform in units of the image side (distance term only).
@@ -142,10 +144,40 @@ impl SdfProblem {
             view,
             render,
             sigma,
+            sigma_schedule: None,
             loss,
             target,
             target_dist,
         })
+    }
+
+    /// Coarse to fine: σ starts at `sigma_start` and shrinks geometrically to the problem's
+    /// σ at iteration `iterations` (thick lines first, so that a figure far from the target's
+    /// still overlaps it; the paper names coarse-to-fine as future work).
+    pub fn with_sigma_schedule(mut self, sigma_start: f64, iterations: u64) -> Result<Self> {
+        if !(sigma_start.is_finite() && sigma_start > 0.0) {
+            return Err(Error::param(
+                "sigma_start",
+                format!("must be > 0 pixels, got {sigma_start}"),
+            ));
+        }
+        self.sigma_schedule = Some((sigma_start, iterations.max(1)));
+        Ok(self)
+    }
+
+    /// σ at progress `frac = t/T` of the run.
+    pub fn sigma_at(&self, frac: f64) -> f64 {
+        match self.sigma_schedule {
+            None => self.sigma,
+            Some((s0, _)) => s0 * (self.sigma / s0).powf(frac.clamp(0.0, 1.0)),
+        }
+    }
+
+    fn frac(&self, iter: u64) -> f64 {
+        match self.sigma_schedule {
+            None => 1.0,
+            Some((_, t)) => iter as f64 / t as f64,
+        }
     }
 
     /// The pattern whose structure is fitted (its points are the start of nothing: θ is
@@ -169,7 +201,7 @@ impl SdfProblem {
         &self.render
     }
 
-    /// σ in pixels.
+    /// σ in pixels at the end of the run (and throughout, without a schedule).
     pub fn sigma(&self) -> f64 {
         self.sigma
     }
@@ -179,16 +211,25 @@ impl SdfProblem {
         Ok(self.pattern.with_flat_points(theta)?)
     }
 
-    /// The rendered image at θ.
+    /// The rendered image at θ (with the final σ).
     pub fn image(&self, theta: &[f64]) -> Result<Vec<f64>> {
         let p = self.pattern_at(theta)?;
         Ok(SdfRaster::render(&p, &self.view, &self.render)?.image(self.sigma))
     }
 
-    /// Loss terms at θ, and the gradient when `grad`.
+    /// Loss terms at θ with the final σ, and the gradient when `grad`.
     pub fn eval(&self, theta: &[f64], grad: bool) -> Result<SdfEval> {
+        self.eval_with(theta, grad, self.sigma)
+    }
+
+    /// Loss terms at θ drawn with width `sigma`, and the gradient when `grad`.
+    pub fn eval_with(&self, theta: &[f64], grad: bool, sigma: f64) -> Result<SdfEval> {
         let p = self.pattern_at(theta)?;
-        let r = SdfRaster::render(&p, &self.view, &self.render)?;
+        let render = SdfRenderConfig {
+            cutoff: self.render.cutoff.map(|_| CUTOFF_SIGMAS * sigma),
+            ..self.render
+        };
+        let r = SdfRaster::render(&p, &self.view, &render)?;
         let (w, h) = (self.view.width, self.view.height);
         let mse = MsMse::new(self.loss.levels);
         let mut g_dist = vec![0.0; w * h];
@@ -199,13 +240,13 @@ impl SdfProblem {
             grad: None,
         };
         if self.loss.pixel > 0.0 {
-            let img = r.image(self.sigma);
+            let img = r.image(sigma);
             let (v, g) = mse.value_and_grad::<f64>(&img, &self.target, w, h)?;
             out.pixel = v;
             out.loss += self.loss.pixel * v;
             if grad {
                 let g: Vec<f64> = g.iter().map(|x| x * self.loss.pixel).collect();
-                g_dist = r.image_backward(self.sigma, &g);
+                g_dist = r.image_backward(sigma, &g);
             }
         }
         if let Some(td) = &self.target_dist {
@@ -234,9 +275,9 @@ impl SdfProblem {
 }
 
 impl Differentiable for SdfProblem {
-    /// Deterministic: the iteration does not matter.
-    fn evaluate(&self, theta: &[f64], _iter: u64) -> Result<Evaluation> {
-        let e = self.eval(theta, true)?;
+    /// Deterministic: the iteration only sets σ when σ follows a schedule.
+    fn evaluate(&self, theta: &[f64], iter: u64) -> Result<Evaluation> {
+        let e = self.eval_with(theta, true, self.sigma_at(self.frac(iter)))?;
         Ok(Evaluation {
             loss: e.loss,
             grad: e.grad.unwrap_or_default(),
@@ -246,8 +287,9 @@ impl Differentiable for SdfProblem {
 }
 
 impl Anneal for SdfProblem {
-    /// The loss itself (the render is deterministic: the stream does not matter).
-    fn anneal_cost(&self, theta: &[f64], _stream: u64, _frac: f64) -> Result<f64> {
-        Ok(self.eval(theta, false)?.loss)
+    /// The loss itself at progress `frac` (the render is deterministic: the stream does
+    /// not matter).
+    fn anneal_cost(&self, theta: &[f64], _stream: u64, frac: f64) -> Result<f64> {
+        Ok(self.eval_with(theta, false, self.sigma_at(frac))?.loss)
     }
 }

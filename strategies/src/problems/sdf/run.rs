@@ -58,14 +58,18 @@ impl Observe<GradState> for Boxed {
 
 /// The problem `cfg` describes for `target` (ink, `size × size`, seen as the unit square).
 pub fn sdf_problem(cfg: &SdfConfig, target: Vec<f64>) -> Result<SdfProblem> {
-    SdfProblem::new(
+    let p = SdfProblem::new(
         cfg.pattern()?,
         target,
         SdfView::unit_square(cfg.size),
         cfg.depth,
         cfg.sigma,
         cfg.loss.clone(),
-    )
+    )?;
+    match cfg.sigma_start {
+        Some(s0) => p.with_sigma_schedule(s0, cfg.iterations),
+        None => Ok(p),
+    }
 }
 
 /// Runs the fit `cfg` describes against `target` (ink in [0, 1], `size × size`), writing
