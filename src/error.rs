@@ -124,6 +124,9 @@ pub enum Error {
         /// Flame and transform.
         location: String,
     },
+    /// A segment pattern (control points and symmetry pairs) that cannot define an IFS.
+    #[error("invalid segment pattern: {0}")]
+    Pattern(String),
     /// A tensor operation (candle) failed.
     #[error("tensor operation failed: {0}")]
     Tensor(#[from] candle_core::Error),

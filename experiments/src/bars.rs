@@ -51,10 +51,10 @@ impl Bar {
         }
     }
 
-    /// The bar for a run of `problem`: image inversions report their loss as the status
+    /// The bar for a run of `problem`: image inversions and sdf fits report their loss as the status
     /// line; the other problems report results worth keeping, as lines.
     pub fn for_problem(problem: &str) -> Self {
-        if problem == "image" {
+        if problem == "image" || problem == "sdf" {
             Bar::default()
         } else {
             Bar::logging()

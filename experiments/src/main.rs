@@ -49,6 +49,9 @@ enum Command {
     Landscape(cmd::landscape::Args),
     /// Where the LPIPS weights are looked for; `weights fetch` downloads and converts them.
     Weights(cmd::weights::Args),
+    /// Segment-pattern IFSs with the differentiable SDF raster: fit control points to an
+    /// image, render a pattern.
+    Sdf(cmd::sdf::Args),
     /// Fractal flames: render .flame files (flam3's algorithm), random flames, info, convert.
     Flame(cmd::flame::Args),
 }
@@ -70,5 +73,6 @@ fn main() -> anyhow::Result<()> {
         Command::Landscape(a) => cmd::landscape::run(a),
         Command::Weights(a) => cmd::weights::run(a),
         Command::Flame(a) => cmd::flame::run(a),
+        Command::Sdf(a) => cmd::sdf::run(a),
     }
 }

@@ -27,6 +27,7 @@ fn every_example_config_is_valid() {
                     (!c.data.starts_with("ifs:")).then(|| c.data.clone().into())
                 }
                 RunConfig::Texture(c) => Some(c.source.clone()),
+                RunConfig::Sdf(c) => Some(c.target.clone()),
             };
             if let Some(f) = file {
                 assert!(f.is_file(), "{}: {} missing", path.display(), f.display());
@@ -38,7 +39,7 @@ fn every_example_config_is_valid() {
     assert!(n >= 4, "expected the example configs, found {n}");
     assert_eq!(
         problems.into_iter().collect::<Vec<_>>(),
-        ["image", "points", "texture"],
+        ["image", "points", "sdf", "texture"],
         "an example config for every problem"
     );
 }
@@ -452,4 +453,114 @@ fn flame_commands_refuse_bad_input() {
     assert!(!Path::new(&p("b.png")).exists());
     let (ok, msg) = ifslab(&["flame", "render", &p("missing.flame"), "-o", &p("b.png")]);
     assert!(!ok && msg.contains("missing.flame"), "{msg}");
+}
+
+/// `ifslab sdf render` draws a built-in pattern, `ifslab sdf fit` fits it back into a full run
+/// folder, refuses to overwrite it, resumes it, and its fitted pattern renders again; bad
+/// pattern files and names are refused with the culprit named.
+#[test]
+fn sdf_fit_and_render_end_to_end() {
+    let tmp = tempfile::tempdir().unwrap();
+    let p = |name: &str| tmp.path().join(name).to_string_lossy().into_owned();
+    let (ok, msg) = ifslab(&[
+        "sdf",
+        "render",
+        "koch",
+        "--size",
+        "64",
+        "--depth",
+        "4",
+        "--sigma",
+        "1.5",
+        "-o",
+        &p("k.png"),
+    ]);
+    assert!(ok, "{msg}");
+    let fit = |iters: &str, extra: &[&str]| {
+        let (target, out) = (p("k.png"), p("fit"));
+        let mut args = vec![
+            "sdf",
+            "fit",
+            &target,
+            "--pattern",
+            "koch",
+            "--depth",
+            "4",
+            "--size",
+            "64",
+            "--iterations",
+            iters,
+            "-o",
+            &out,
+        ];
+        args.extend_from_slice(extra);
+        ifslab(&args)
+    };
+    let (ok, msg) = fit("30", &[]);
+    assert!(ok, "{msg}");
+    for f in [
+        "config.toml",
+        "target.png",
+        "target.npy",
+        "render.png",
+        "pattern.json",
+        "log.csv",
+        "loss.png",
+        "summary.json",
+        "checkpoint.json",
+    ] {
+        assert!(tmp.path().join("fit").join(f).is_file(), "{f} missing");
+    }
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(p("fit/summary.json")).unwrap()).unwrap();
+    assert!(summary["iou"].as_f64().unwrap() > 0.0 && summary["iterations"] == 30);
+    let (ok, msg) = fit("30", &[]);
+    assert!(!ok && msg.contains("already holds a run"), "{msg}");
+    let (ok, msg) = fit("40", &["--resume"]);
+    assert!(ok, "{msg}");
+    let log = std::fs::read_to_string(p("fit/log.csv")).unwrap();
+    assert_eq!(log.lines().count(), 41, "one header and 40 iterations");
+    let (ok, msg) = ifslab(&[
+        "sdf",
+        "render",
+        &p("fit/pattern.json"),
+        "-o",
+        &p("again.png"),
+    ]);
+    assert!(ok && msg.contains("64×64"), "{msg}");
+    // The same fit from a config file.
+    std::fs::write(
+        p("fit.toml"),
+        "problem = \"sdf\"\ntarget = \"k.png\"\npattern = \"koch\"\nsize = 64\ndepth = 4\niterations = 5\n",
+    )
+    .unwrap();
+    let (ok, msg) = ifslab(&["run", &p("fit.toml"), "-o", &p("fromconfig")]);
+    assert!(ok && msg.contains("IoU"), "{msg}");
+    // Bad input.
+    std::fs::write(
+        p("bad.json"),
+        r#"{"format": "ifslab-pattern/1", "points": [[0,0],[1,0],[0.5,0.2]],
+            "pairs": [{"source": [0, 1], "target": [0, 3]}]}"#,
+    )
+    .unwrap();
+    let (ok, msg) = ifslab(&["sdf", "render", &p("bad.json"), "-o", &p("bad.png")]);
+    assert!(
+        !ok && msg.contains("pair 0") && msg.contains("point 3"),
+        "{msg}"
+    );
+    let (ok, msg) = ifslab(&[
+        "sdf",
+        "fit",
+        &p("k.png"),
+        "--pattern",
+        "kosh",
+        "-o",
+        &p("x"),
+    ]);
+    assert!(
+        !ok && msg.contains("unknown built-in pattern `kosh`"),
+        "{msg}"
+    );
+    let (ok, msg) = ifslab(&["sdf", "fit", &p("k.png"), "--sigma", "0", "-o", &p("y")]);
+    assert!(!ok && msg.contains("sigma"), "{msg}");
 }

@@ -29,7 +29,7 @@ use crate::model::probs::{ProbabilityRule, validate_probabilities};
 
 /// The first bare `NaN`/`Infinity` token or out-of-range number outside strings, as
 /// `(line, column, token)`, both 1-based.
-fn find_non_finite_token(text: &str) -> Option<(usize, usize, String)> {
+pub(crate) fn find_non_finite_token(text: &str) -> Option<(usize, usize, String)> {
     let mut in_string = false;
     let mut escaped = false;
     let bytes = text.as_bytes();

@@ -12,6 +12,8 @@
 //! - [`code`]: the JSON code file, validated on load.
 //! - [`library`]: Sierpiński, fern, Koch, carpet, dragon, … by name.
 //! - [`random`]: the Anderson–Farrell random-code sampler.
+//! - [`segment`]: segment maps — control points and a symmetry pattern of segment pairs,
+//!   each pair a similitude (Scott's differentiable IFS), with the chain rule to the points.
 //! - [`flame`]: fractal flames — flam3's 99 variations, transforms with exact Jacobians,
 //!   `.flame` files.
 
@@ -23,6 +25,7 @@ pub mod library;
 pub mod param;
 pub mod probs;
 pub mod random;
+pub mod segment;
 pub mod similitude;
 
 pub use affine::{Affine2, AffineN, Map2};

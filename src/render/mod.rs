@@ -12,12 +12,15 @@
 //! - [`flame`]: the fractal flame renderer (flam3's algorithm: colour + density
 //!   histogram, density estimation, log tone map), deterministic and parallel.
 //!
-//! The differentiable SDF rasteriser joins here as `sdf`.
+//! - [`sdf`]: the differentiable SDF rasteriser of segment-map IFSs (distance to the
+//!   nearest primitive of every word up to depth K, tiled branch-and-bound over the word
+//!   tree, reverse pass to the control points).
 
 pub mod flame;
 pub mod framing;
 pub mod image_io;
 pub mod raster;
+pub mod sdf;
 pub mod splat;
 
 pub use framing::{FIT_FILL, View, Zoom, fit_window, zoom_window};

@@ -10,6 +10,7 @@ pub mod landscape;
 pub mod render;
 pub mod run;
 pub mod sample;
+pub mod sdf;
 pub mod suite;
 pub mod sweep;
 pub mod texture;

@@ -1,6 +1,6 @@
 //! Any run `ifslab run` accepts: one TOML config whose top-level `problem` key says which
 //! problem it describes (`"image"` — the default, so older configs keep working —,
-//! `"points"` or `"texture"`), and
+//! `"points"`, `"texture"` or `"sdf"`), and
 //! one call that turns it into a run folder. The command line, the sweeps and any other front
 //! end go through [`RunConfig::run`].
 
@@ -8,11 +8,13 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use ifslab_strategies::problems::image::InversionConfig;
+use ifslab_strategies::problems::sdf::SdfConfig;
 use serde::Serialize;
 
 use crate::progress::Progress;
 use crate::runs::inversion;
 use crate::runs::points::{self, PointsConfig};
+use crate::runs::sdf;
 use crate::runs::texture::{self, TextureConfig};
 
 /// The config key that names the problem a config describes.
@@ -30,6 +32,8 @@ pub enum RunConfig {
     Points(Box<PointsConfig>),
     /// Fractal-coding texture upsampling (`problem = "texture"`).
     Texture(Box<TextureConfig>),
+    /// Image → segment pattern by the SDF raster (`problem = "sdf"`).
+    Sdf(Box<SdfConfig>),
 }
 
 /// What every run reports when it ends: a one-line headline for people and the
@@ -46,7 +50,7 @@ pub struct RunReport {
 
 impl RunConfig {
     /// The problems a config can name, in the order the help text lists them.
-    pub const PROBLEMS: &'static [&'static str] = &["image", "points", "texture"];
+    pub const PROBLEMS: &'static [&'static str] = &["image", "points", "texture", "sdf"];
 
     /// A config from a parsed TOML table; `origin` (the file it came from) names it in
     /// errors and relative file names in it are read from its folder.
@@ -74,6 +78,10 @@ impl RunConfig {
             "texture" => {
                 let cfg = TextureConfig::from_toml(&text, origin)?.relative_to(dir);
                 Ok(RunConfig::Texture(Box::new(cfg)))
+            }
+            "sdf" => {
+                let cfg = SdfConfig::from_toml(&text, origin)?.relative_to(dir);
+                Ok(RunConfig::Sdf(Box::new(cfg)))
             }
             other => bail!(
                 "{}: unknown problem `{other}` (known: {})",
@@ -104,6 +112,7 @@ impl RunConfig {
             RunConfig::Image(_) => "image",
             RunConfig::Points(_) => "points",
             RunConfig::Texture(_) => "texture",
+            RunConfig::Sdf(_) => "sdf",
         }
     }
 
@@ -115,6 +124,7 @@ impl RunConfig {
             RunConfig::Image(c) => toml::Table::try_from(c.with_absolute_paths()?)?,
             RunConfig::Points(c) => toml::Table::try_from(c.resolved()?)?,
             RunConfig::Texture(c) => toml::Table::try_from(c.resolved()?)?,
+            RunConfig::Sdf(c) => toml::Table::try_from(c.with_absolute_paths()?)?,
         };
         let mut t = toml::Table::new();
         t.insert(PROBLEM_KEY.into(), self.problem().into());
@@ -128,6 +138,7 @@ impl RunConfig {
             RunConfig::Image(c) => c.output.as_deref(),
             RunConfig::Points(c) => c.output.as_deref(),
             RunConfig::Texture(c) => c.output.as_deref(),
+            RunConfig::Sdf(c) => c.output.as_deref(),
         }
     }
 
@@ -170,6 +181,14 @@ impl RunConfig {
                     summary: serde_json::to_value(&s)?,
                 })
             }
+            RunConfig::Sdf(cfg) => {
+                let s = sdf::run(cfg, dir, resume, progress)?;
+                Ok(RunReport {
+                    problem: self.problem().into(),
+                    headline: s.headline(),
+                    summary: serde_json::to_value(&s)?,
+                })
+            }
         }
     }
 
@@ -199,12 +218,13 @@ mod tests {
     }
 
     #[test]
-    fn points_and_texture_configs_resolve_to_tables_that_read_back_the_same() {
+    fn points_texture_and_sdf_configs_resolve_to_tables_that_read_back_the_same() {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs");
         for (name, problem) in [
             ("points_triangle.toml", "points"),
             ("points_kitten.toml", "points"),
             ("texture_brick.toml", "texture"),
+            ("sdf_koch.toml", "sdf"),
         ] {
             let c = RunConfig::load(&dir.join(name)).unwrap();
             assert_eq!(c.problem(), problem);

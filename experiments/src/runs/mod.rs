@@ -6,6 +6,8 @@
 //! - [`landscape`]: loss landscapes of an image-inversion run folder;
 //! - [`points`]: point cloud → IFS of similitudes by EM, single fits and pool sweeps, each
 //!   finished fit checkpointed;
+//! - [`sdf`]: image → segment pattern by the differentiable SDF raster (fitted pattern,
+//!   render, loss plot, summary);
 //! - [`texture`]: fractal-coding texture upsampling, and the paper's tables and figures
 //!   ([`texture::repro`]).
 
@@ -13,6 +15,7 @@ pub mod config;
 pub mod inversion;
 pub mod landscape;
 pub mod points;
+pub mod sdf;
 pub mod texture;
 
 pub use config::{RunConfig, RunReport};

@@ -1,8 +1,10 @@
 //! The problems the optimisers solve, each with its own data, model, objective and runner:
 //! image → affine code by differentiable splatting ([`image`], any registered optimiser),
 //! point cloud → similitude IFS by EM ([`em`], its own loop), texture upsampling by fractal
-//! coding ([`fractal_coding`], a search, not an optimiser).
+//! coding ([`fractal_coding`], a search, not an optimiser), image → segment pattern by the
+//! differentiable SDF raster ([`sdf`], any registered optimiser).
 
 pub mod em;
 pub mod fractal_coding;
 pub mod image;
+pub mod sdf;

@@ -1,0 +1,26 @@
+//! Image → segment pattern: fit the control points of a symmetry pattern so that its SDF
+//! render matches a target image (Scott's differentiable IFS), with any registered strategy
+//! (Adam by default) under the shared driver — checkpoints, CSV log, `--resume`.
+//!
+//! - [`target`]: the target's distance transform and the best-fit line of its dark pixels;
+//! - [`init`]: where the control points start (the paper's best-fit line);
+//! - [`problem`]: θ → maps → SDF raster → multi-scale MSE on pixels and distances, with its
+//!   gradient;
+//! - [`config`]: the validated TOML configuration (`problem = "sdf"`);
+//! - [`run`]: start, solver, executor, resume.
+//!
+//! ## References
+//! - Scott, *Differentiable Iterated Function Systems*, Differentiable Almost Everything
+//!   workshop, ICML 2024.
+
+pub mod config;
+pub mod init;
+pub mod problem;
+pub mod run;
+pub mod target;
+
+pub use config::{SdfConfig, SdfInitConfig};
+pub use init::{SdfInit, initial_points};
+pub use problem::{CUTOFF_SIGMAS, SDF_TERMS, SdfEval, SdfLossConfig, SdfProblem};
+pub use run::{SdfOutcome, run_sdf, sdf_problem};
+pub use target::{INK, best_fit_line, distance_transform};

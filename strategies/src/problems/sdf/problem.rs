@@ -1,0 +1,295 @@
+//! The fit: control points θ → segment maps → SDF raster → multi-scale MSE on pixels and on
+//! distances → gradient, all in f64 with the renderer's hand-written reverse pass.
+//!
+//! The paper's two losses: multi-scale MSE (the image and its 2×2-pooled copies, summed)
+//! between the rendered pixels `exp(−d²/σ²)` and the target's ink, and between the raw
+//! distances and the target's distance transform. Here they are two weighted terms of one
+//! loss; distances are measured in units of the image side, so the term does not grow with
+//! the resolution. The target's distance transform is to the centres of its dark pixels,
+//! while the render's is to the figure itself: on a target drawn with width σ the two differ
+//! by about σ near the figure, which the pixel term does not.
+
+use ifslab::loss::{ImageLoss, MsMse};
+use ifslab::model::segment::Pattern;
+use ifslab::render::sdf::{SdfRaster, SdfRenderConfig, SdfView};
+use serde::{Deserialize, Serialize};
+
+use crate::driver::{Differentiable, Evaluation};
+use crate::error::{Error, Result};
+use crate::optim::annealing::Anneal;
+use crate::problems::sdf::target::distance_transform;
+
+/// Names of the logged loss terms, in column order.
+pub const SDF_TERMS: [&str; 2] = ["pixel", "distance"];
+
+/// Pixels beyond this many σ contribute less than `e^{−36} ≈ 2.3e-16` and are not computed
+/// when the loss has no distance term.
+pub const CUTOFF_SIGMAS: f64 = 6.0;
+
+/// The loss of a fit.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SdfLossConfig {
+    /// Weight of the multi-scale MSE on pixels.
+    pub pixel: f64,
+    /// Weight of the multi-scale MSE on distances (in units of the image side).
+    pub distance: f64,
+    /// 2×2 poolings after the full-resolution level.
+    pub levels: usize,
+}
+
+impl Default for SdfLossConfig {
+    fn default() -> Self {
+        SdfLossConfig {
+            pixel: 1.0,
+            distance: 0.0,
+            levels: 4,
+        }
+    }
+}
+
+impl SdfLossConfig {
+    /// Checks the weights; errors name the field.
+    pub fn validate(&self) -> Result<()> {
+        for (name, w) in [("loss.pixel", self.pixel), ("loss.distance", self.distance)] {
+            if !(w.is_finite() && w >= 0.0) {
+                return Err(Error::param(
+                    name,
+                    format!("must be finite and ≥ 0, got {w}"),
+                ));
+            }
+        }
+        if self.pixel == 0.0 && self.distance == 0.0 {
+            return Err(Error::param(
+                "loss",
+                "at least one of `pixel` and `distance` must be > 0",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Fit a pattern's control points to a target image.
+#[derive(Clone, Debug)]
+pub struct SdfProblem {
+    pattern: Pattern,
+    view: SdfView,
+    render: SdfRenderConfig,
+    sigma: f64,
+    /// `(σ at iteration 0, T)` when σ shrinks over the run.
+    sigma_schedule: Option<(f64, u64)>,
+    loss: SdfLossConfig,
+    target: Vec<f64>,
+    /// The target's distance transform in units of the image side (distance term only).
+    target_dist: Option<Vec<f64>>,
+}
+
+/// One evaluation's numbers.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SdfEval {
+    /// Weighted total.
+    pub loss: f64,
+    /// Unweighted pixel term.
+    pub pixel: f64,
+    /// Unweighted distance term.
+    pub distance: f64,
+    /// ∂loss/∂θ, when asked for.
+    pub grad: Option<Vec<f64>>,
+}
+
+impl SdfProblem {
+    /// The fit of `pattern`'s structure to `target` (ink in [0, 1], row-major, the view's
+    /// size), drawn to `depth` with width `sigma` pixels.
+    pub fn new(
+        pattern: Pattern,
+        target: Vec<f64>,
+        view: SdfView,
+        depth: usize,
+        sigma: f64,
+        loss: SdfLossConfig,
+    ) -> Result<Self> {
+        view.validate()?;
+        loss.validate()?;
+        if !(sigma.is_finite() && sigma > 0.0) {
+            return Err(Error::param(
+                "sigma",
+                format!("must be > 0 pixels, got {sigma}"),
+            ));
+        }
+        if target.len() != view.width * view.height {
+            return Err(Error::InvalidInput(format!(
+                "target has {} pixels, the view {}×{}",
+                target.len(),
+                view.width,
+                view.height
+            )));
+        }
+        let target_dist = if loss.distance > 0.0 {
+            let side = view.width.max(view.height) as f64;
+            Some(
+                distance_transform(&target, view.width, view.height)?
+                    .into_iter()
+                    .map(|d| d / side)
+                    .collect(),
+            )
+        } else {
+            None
+        };
+        let render = SdfRenderConfig {
+            depth,
+            cutoff: (loss.distance == 0.0).then_some(CUTOFF_SIGMAS * sigma),
+        };
+        Ok(SdfProblem {
+            pattern,
+            view,
+            render,
+            sigma,
+            sigma_schedule: None,
+            loss,
+            target,
+            target_dist,
+        })
+    }
+
+    /// Coarse to fine: σ starts at `sigma_start` and shrinks geometrically to the problem's
+    /// σ at iteration `iterations` (thick lines first, so that a figure far from the target's
+    /// still overlaps it; the paper names coarse-to-fine as future work).
+    pub fn with_sigma_schedule(mut self, sigma_start: f64, iterations: u64) -> Result<Self> {
+        if !(sigma_start.is_finite() && sigma_start > 0.0) {
+            return Err(Error::param(
+                "sigma_start",
+                format!("must be > 0 pixels, got {sigma_start}"),
+            ));
+        }
+        self.sigma_schedule = Some((sigma_start, iterations.max(1)));
+        Ok(self)
+    }
+
+    /// σ at progress `frac = t/T` of the run.
+    pub fn sigma_at(&self, frac: f64) -> f64 {
+        match self.sigma_schedule {
+            None => self.sigma,
+            Some((s0, _)) => s0 * (self.sigma / s0).powf(frac.clamp(0.0, 1.0)),
+        }
+    }
+
+    fn frac(&self, iter: u64) -> f64 {
+        match self.sigma_schedule {
+            None => 1.0,
+            Some((_, t)) => iter as f64 / t as f64,
+        }
+    }
+
+    /// The pattern whose structure is fitted (its points are the start of nothing: θ is
+    /// passed to every call).
+    pub fn pattern(&self) -> &Pattern {
+        &self.pattern
+    }
+
+    /// The view.
+    pub fn view(&self) -> &SdfView {
+        &self.view
+    }
+
+    /// The target's ink.
+    pub fn target(&self) -> &[f64] {
+        &self.target
+    }
+
+    /// The render settings.
+    pub fn render_config(&self) -> &SdfRenderConfig {
+        &self.render
+    }
+
+    /// σ in pixels at the end of the run (and throughout, without a schedule).
+    pub fn sigma(&self) -> f64 {
+        self.sigma
+    }
+
+    /// The pattern with control points θ.
+    pub fn pattern_at(&self, theta: &[f64]) -> Result<Pattern> {
+        Ok(self.pattern.with_flat_points(theta)?)
+    }
+
+    /// The rendered image at θ (with the final σ).
+    pub fn image(&self, theta: &[f64]) -> Result<Vec<f64>> {
+        let p = self.pattern_at(theta)?;
+        Ok(SdfRaster::render(&p, &self.view, &self.render)?.image(self.sigma))
+    }
+
+    /// Loss terms at θ with the final σ, and the gradient when `grad`.
+    pub fn eval(&self, theta: &[f64], grad: bool) -> Result<SdfEval> {
+        self.eval_with(theta, grad, self.sigma)
+    }
+
+    /// Loss terms at θ drawn with width `sigma`, and the gradient when `grad`.
+    pub fn eval_with(&self, theta: &[f64], grad: bool, sigma: f64) -> Result<SdfEval> {
+        let p = self.pattern_at(theta)?;
+        let render = SdfRenderConfig {
+            cutoff: self.render.cutoff.map(|_| CUTOFF_SIGMAS * sigma),
+            ..self.render
+        };
+        let r = SdfRaster::render(&p, &self.view, &render)?;
+        let (w, h) = (self.view.width, self.view.height);
+        let mse = MsMse::new(self.loss.levels);
+        let mut g_dist = vec![0.0; w * h];
+        let mut out = SdfEval {
+            loss: 0.0,
+            pixel: 0.0,
+            distance: 0.0,
+            grad: None,
+        };
+        if self.loss.pixel > 0.0 {
+            let img = r.image(sigma);
+            let (v, g) = mse.value_and_grad::<f64>(&img, &self.target, w, h)?;
+            out.pixel = v;
+            out.loss += self.loss.pixel * v;
+            if grad {
+                let g: Vec<f64> = g.iter().map(|x| x * self.loss.pixel).collect();
+                g_dist = r.image_backward(sigma, &g);
+            }
+        }
+        if let Some(td) = &self.target_dist {
+            let side = w.max(h) as f64;
+            let d: Vec<f64> = r.distances().iter().map(|x| x / side).collect();
+            let (v, g) = mse.value_and_grad::<f64>(&d, td, w, h)?;
+            out.distance = v;
+            out.loss += self.loss.distance * v;
+            if grad {
+                for (gd, x) in g_dist.iter_mut().zip(&g) {
+                    *gd += self.loss.distance * x / side;
+                }
+            }
+        }
+        if !out.loss.is_finite() {
+            return Err(Error::Numerical(format!(
+                "the loss is {} at these control points",
+                out.loss
+            )));
+        }
+        if grad {
+            out.grad = Some(r.backward(&p, &g_dist)?);
+        }
+        Ok(out)
+    }
+}
+
+impl Differentiable for SdfProblem {
+    /// Deterministic: the iteration only sets σ when σ follows a schedule.
+    fn evaluate(&self, theta: &[f64], iter: u64) -> Result<Evaluation> {
+        let e = self.eval_with(theta, true, self.sigma_at(self.frac(iter)))?;
+        Ok(Evaluation {
+            loss: e.loss,
+            grad: e.grad.unwrap_or_default(),
+            terms: vec![(SDF_TERMS[0], e.pixel), (SDF_TERMS[1], e.distance)],
+        })
+    }
+}
+
+impl Anneal for SdfProblem {
+    /// The loss itself at progress `frac` (the render is deterministic: the stream does
+    /// not matter).
+    fn anneal_cost(&self, theta: &[f64], _stream: u64, frac: f64) -> Result<f64> {
+        Ok(self.eval_with(theta, false, self.sigma_at(frac))?.loss)
+    }
+}
