@@ -43,7 +43,10 @@ pub struct HybridConfig {
     pub anneal_every: u64,
     /// Fraction of the run during which phases happen (paper: the first half).
     pub anneal_fraction: f64,
-    /// What a phase's Metropolis test compares (paper: the raw proposals).
+    /// What a phase's Metropolis test compares (paper: the raw proposals). Left out of a
+    /// written config when it is the paper's, so configs (and the sweep run ids hashed from
+    /// them) written before the field existed keep their text.
+    #[serde(skip_serializing_if = "PhaseAcceptance::is_paper")]
     pub acceptance: PhaseAcceptance,
 }
 
@@ -64,6 +67,13 @@ pub enum PhaseAcceptance {
     /// stream). The last phase of the run only accepts or undoes; the refinement after it
     /// starts from the anchor.
     Refined,
+}
+
+impl PhaseAcceptance {
+    /// Whether this is the paper's rule (the default).
+    pub fn is_paper(&self) -> bool {
+        *self == PhaseAcceptance::Proposals
+    }
 }
 
 /// The random streams on which [`PhaseAcceptance::Refined`] compares refined codes: fixed for
