@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Reproduces what paper_repro/differentiable_ifs/README.md reports for Scott's differentiable
-# IFS: Fig. 2 (Koch, carpet, the horse silhouette; target | fit pictures and summaries) and
+# IFS: Fig. 2 (Koch, carpet, the horse silhouette; target | fit pictures and summaries), Fig. 3
+# (gradient fields at the Koch apex) and
 # the local-optima measurement of Fig. 4 (Koch fits from jittered starts over seeds, with and
 # without the self-crossing penalty; CSV + galleries). About 3 minutes on 2 busy cores.
 # Writes into results/ (or the folder given as the first argument).
@@ -11,6 +12,7 @@ OUT="${1:-paper_repro/differentiable_ifs/results}"
 if [ -z "${SKIP_BUILD:-}" ]; then
   cargo build --profile ci -p ifslab-experiments --bin ifslab
   cargo build --profile ci -p ifslab-strategies --example sdf_seeds --example side_by_side
+  cargo build --profile ci -p ifslab-experiments --example sdf_gradient_field
 fi
 T="${CARGO_TARGET_DIR:-target}/ci"
 BIN="$T/ifslab"
@@ -44,3 +46,10 @@ fit horse "${SILHOUETTES:-../shared/data/silhouettes}/horse.png" --pattern carpe
   --gallery "$OUT/gallery" > "$OUT/koch_seeds_depth1.csv"
 "$T/examples/sdf_seeds" --seeds 10 --jitters 0.06,0.1 --weights 100 --crossing-depth 3 \
   > "$OUT/koch_seeds_depth3.csv"
+
+# Fig. 3: descent directions at p2 of the Koch curve (128², depth 5, σ 1.5) over 15×15
+# positions, windows of half-side 0.15 (numbers only) and 0.3 (numbers and picture).
+{
+  "$T/examples/sdf_gradient_field" --half 0.15 "$WORK/fig3_gradient_field_0.15.png"
+  "$T/examples/sdf_gradient_field" --half 0.3 "$OUT/fig3_gradient_field.png"
+} | tee "$OUT/fig3.txt"
