@@ -16,7 +16,7 @@
 //!   `problem = "texture"`; one encoding of seconds, not checkpointed) and the paper's tables
 //!   and figures ([`runs::texture::repro`], resumable per texture);
 //! - [`runs::landscape`]: loss landscapes of a run (`ifslab landscape`);
-//! - [`plot`]: line charts, scatter plots and heat maps with a bundled font;
+//! - [`plot`]: line charts, scatter plots, heat maps and vector fields with a bundled font;
 //! - [`progress`]: the progress callback;
 //! - [`codes::resolve_code`]: a code from a file or a built-in name;
 //! - [`sweep`]: many runs from one sweep file: locally, in shards, as a Slurm job array, and

@@ -330,6 +330,77 @@ fn ramp(t: f64) -> RGBColor {
     RGBColor(ch(0), ch(1), ch(2))
 }
 
+/// One panel of [`vector_fields`]: an arrow per grid point.
+pub struct Field<'a> {
+    /// Panel title.
+    pub title: &'a str,
+    /// `(x, y, dx, dy)` per arrow; only the direction is drawn (every arrow has the same
+    /// length), zero vectors as a dot.
+    pub arrows: &'a [(f64, f64, f64, f64)],
+    /// Colour index (plotters' 99-colour palette).
+    pub colour: usize,
+}
+
+/// Side-by-side direction fields over the same square window, each arrow `arrow` long (plane
+/// units) with a dot at its head, and `marks` drawn as labelled crosses on every panel.
+pub fn vector_fields(
+    path: &Path,
+    title: &str,
+    window: ((f64, f64), (f64, f64)),
+    arrow: f64,
+    panels: &[Field<'_>],
+    marks: &[(&str, f64, f64)],
+) -> anyhow::Result<()> {
+    ensure_font();
+    anyhow::ensure!(!panels.is_empty(), "nothing to plot");
+    let root = BitMapBackend::new(path, (520 * panels.len() as u32, 560)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let root = root.titled(title, ("sans-serif", 22))?;
+    let ((x0, x1), (y0, y1)) = window;
+    for (area, panel) in root.split_evenly((1, panels.len())).iter().zip(panels) {
+        let colour = Palette99::pick(panel.colour).to_rgba();
+        let mut chart = ChartBuilder::on(area)
+            .caption(panel.title, ("sans-serif", 16))
+            .margin(10)
+            .x_label_area_size(30)
+            .y_label_area_size(44)
+            .build_cartesian_2d(x0..x1, y0..y1)?;
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .label_style(("sans-serif", 12))
+            .draw()?;
+        for &(x, y, dx, dy) in panel.arrows {
+            let n = dx.hypot(dy);
+            if !(n.is_finite() && n > 0.0) {
+                chart.draw_series(std::iter::once(Circle::new((x, y), 1, colour.filled())))?;
+                continue;
+            }
+            let head = (x + arrow * dx / n, y + arrow * dy / n);
+            chart.draw_series(std::iter::once(PathElement::new(
+                vec![(x, y), head],
+                colour.stroke_width(2),
+            )))?;
+            chart.draw_series(std::iter::once(Circle::new(head, 2, colour.filled())))?;
+        }
+        for &(label, x, y) in marks {
+            chart.draw_series(std::iter::once(Cross::new(
+                (x, y),
+                7,
+                BLACK.stroke_width(2),
+            )))?;
+            chart.draw_series(std::iter::once(Text::new(
+                label.to_owned(),
+                (x, y),
+                ("sans-serif", 14),
+            )))?;
+        }
+    }
+    root.present()
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}
+
 fn min_max(it: impl Iterator<Item = f64>) -> (f64, f64) {
     it.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
         (a.min(v), b.max(v))

@@ -536,6 +536,37 @@ fn sdf_fit_and_render_end_to_end() {
     .unwrap();
     let (ok, msg) = ifslab(&["run", &p("fit.toml"), "-o", &p("fromconfig")]);
     assert!(ok && msg.contains("IoU"), "{msg}");
+    // The crossing penalty from the command line: logged as its own column; a negative
+    // weight refused with the field named.
+    let (target, out) = (p("k.png"), p("crossed"));
+    let mut args = vec![
+        "sdf",
+        "fit",
+        &target,
+        "--pattern",
+        "koch",
+        "--depth",
+        "4",
+        "--size",
+        "64",
+    ];
+    args.extend_from_slice(&[
+        "--iterations",
+        "5",
+        "--crossing-weight",
+        "10",
+        "--crossing-depth",
+    ]);
+    args.extend_from_slice(&["2", "-o", &out]);
+    let (ok, msg) = ifslab(&args);
+    assert!(ok, "{msg}");
+    let log = std::fs::read_to_string(p("crossed/log.csv")).unwrap();
+    assert!(
+        log.starts_with("iter,loss,pixel,distance,crossing,"),
+        "{log}"
+    );
+    let (ok, msg) = fit("5", &["--crossing-weight=-1"]);
+    assert!(!ok && msg.contains("loss.crossing"), "{msg}");
     // Bad input.
     std::fs::write(
         p("bad.json"),

@@ -58,11 +58,13 @@ fn the_whole_loss_gradient_matches_finite_differences() {
             pixel: 1.0,
             distance: 0.7,
             levels: 3,
+            ..SdfLossConfig::default()
         },
         SdfLossConfig {
             pixel: 1.0,
             distance: 0.0,
             levels: 3,
+            ..SdfLossConfig::default()
         },
     ] {
         let p = SdfProblem::new(
@@ -116,6 +118,7 @@ fn koch_config(dir: &std::path::Path, iterations: u64, final_lr_factor: f64) -> 
         pixel: 1.0,
         distance: 0.0,
         levels: 4,
+        ..SdfLossConfig::default()
     };
     c.strategy = StrategyConfig::new(&AdamConfig {
         lr: 2e-3,

@@ -59,6 +59,12 @@ pub struct FitArgs {
     /// Weight of the multi-scale MSE on distance values (0: pixels only).
     #[arg(long, default_value_t = 0.0)]
     pub distance_weight: f64,
+    /// Weight of the self-crossing penalty on the base figure's copies (0: off).
+    #[arg(long, default_value_t = 0.0)]
+    pub crossing_weight: f64,
+    /// Length of the words whose copies the crossing penalty compares (1–3).
+    #[arg(long, default_value_t = 1)]
+    pub crossing_depth: usize,
     /// Where the points start: line (the paper's best-fit line), pattern, given.
     #[arg(long, default_value = "line")]
     pub init: String,
@@ -112,6 +118,8 @@ fn fit(a: FitArgs) -> anyhow::Result<()> {
     cfg.iterations = a.iterations;
     cfg.seed = a.seed;
     cfg.loss.distance = a.distance_weight;
+    cfg.loss.crossing = a.crossing_weight;
+    cfg.loss.crossing_depth = a.crossing_depth;
     cfg.init.kind = match a.init.as_str() {
         "line" => SdfInit::Line,
         "pattern" => SdfInit::Pattern,

@@ -6,6 +6,8 @@
 //! - [`init`]: where the control points start (the paper's best-fit line);
 //! - [`problem`]: θ → maps → SDF raster → multi-scale MSE on pixels and distances, with its
 //!   gradient;
+//! - [`crossing`]: the penalty on copies of the base figure crossing each other (the
+//!   barrier the paper proposes against the local optima of its Fig. 4 and 7);
 //! - [`config`]: the validated TOML configuration (`problem = "sdf"`);
 //! - [`run`]: start, solver, executor, resume.
 //!
@@ -14,12 +16,14 @@
 //!   workshop, ICML 2024.
 
 pub mod config;
+pub mod crossing;
 pub mod init;
 pub mod problem;
 pub mod run;
 pub mod target;
 
 pub use config::{SdfConfig, SdfInitConfig};
+pub use crossing::{MAX_CROSSING_DEPTH, crossing_depth2, crossing_penalty};
 pub use init::{SdfInit, initial_points};
 pub use problem::{CUTOFF_SIGMAS, SDF_TERMS, SdfEval, SdfLossConfig, SdfProblem};
 pub use run::{SdfOutcome, run_sdf, sdf_problem};

@@ -17,10 +17,11 @@ use serde::{Deserialize, Serialize};
 use crate::driver::{Differentiable, Evaluation};
 use crate::error::{Error, Result};
 use crate::optim::annealing::Anneal;
+use crate::problems::sdf::crossing::{MAX_CROSSING_DEPTH, crossing_penalty};
 use crate::problems::sdf::target::distance_transform;
 
 /// Names of the logged loss terms, in column order.
-pub const SDF_TERMS: [&str; 2] = ["pixel", "distance"];
+pub const SDF_TERMS: [&str; 3] = ["pixel", "distance", "crossing"];
 
 /// Pixels beyond this many σ contribute less than `e^{−36} ≈ 2.3e-16` and are not computed
 /// when the loss has no distance term.
@@ -36,6 +37,13 @@ pub struct SdfLossConfig {
     pub distance: f64,
     /// 2×2 poolings after the full-resolution level.
     pub levels: usize,
+    /// Weight of the self-crossing penalty (0: off): the sum over pairs of copies of the
+    /// base figure of their squared crossing depth, in units of the pattern's plane (see
+    /// [`crate::problems::sdf::crossing`]).
+    pub crossing: f64,
+    /// Length of the words whose copies of the base figure the crossing penalty compares
+    /// (1: one copy per map).
+    pub crossing_depth: usize,
 }
 
 impl Default for SdfLossConfig {
@@ -44,6 +52,8 @@ impl Default for SdfLossConfig {
             pixel: 1.0,
             distance: 0.0,
             levels: 4,
+            crossing: 0.0,
+            crossing_depth: 1,
         }
     }
 }
@@ -51,7 +61,11 @@ impl Default for SdfLossConfig {
 impl SdfLossConfig {
     /// Checks the weights; errors name the field.
     pub fn validate(&self) -> Result<()> {
-        for (name, w) in [("loss.pixel", self.pixel), ("loss.distance", self.distance)] {
+        for (name, w) in [
+            ("loss.pixel", self.pixel),
+            ("loss.distance", self.distance),
+            ("loss.crossing", self.crossing),
+        ] {
             if !(w.is_finite() && w >= 0.0) {
                 return Err(Error::param(
                     name,
@@ -63,6 +77,15 @@ impl SdfLossConfig {
             return Err(Error::param(
                 "loss",
                 "at least one of `pixel` and `distance` must be > 0",
+            ));
+        }
+        if !(1..=MAX_CROSSING_DEPTH).contains(&self.crossing_depth) {
+            return Err(Error::param(
+                "loss.crossing_depth",
+                format!(
+                    "must be between 1 and {MAX_CROSSING_DEPTH}, got {}",
+                    self.crossing_depth
+                ),
             ));
         }
         Ok(())
@@ -93,6 +116,8 @@ pub struct SdfEval {
     pub pixel: f64,
     /// Unweighted distance term.
     pub distance: f64,
+    /// Unweighted self-crossing penalty (0 when its weight is 0: not computed).
+    pub crossing: f64,
     /// ∂loss/∂θ, when asked for.
     pub grad: Option<Vec<f64>>,
 }
@@ -237,6 +262,7 @@ impl SdfProblem {
             loss: 0.0,
             pixel: 0.0,
             distance: 0.0,
+            crossing: 0.0,
             grad: None,
         };
         if self.loss.pixel > 0.0 {
@@ -261,6 +287,13 @@ impl SdfProblem {
                 }
             }
         }
+        let mut g_cross = None;
+        if self.loss.crossing > 0.0 {
+            let (v, g) = crossing_penalty(&p, self.loss.crossing_depth, grad)?;
+            out.crossing = v;
+            out.loss += self.loss.crossing * v;
+            g_cross = Some(g);
+        }
         if !out.loss.is_finite() {
             return Err(Error::Numerical(format!(
                 "the loss is {} at these control points",
@@ -268,7 +301,13 @@ impl SdfProblem {
             )));
         }
         if grad {
-            out.grad = Some(r.backward(&p, &g_dist)?);
+            let mut g = r.backward(&p, &g_dist)?;
+            if let Some(gc) = g_cross {
+                for (x, c) in g.iter_mut().zip(gc) {
+                    *x += self.loss.crossing * c;
+                }
+            }
+            out.grad = Some(g);
         }
         Ok(out)
     }
@@ -281,7 +320,11 @@ impl Differentiable for SdfProblem {
         Ok(Evaluation {
             loss: e.loss,
             grad: e.grad.unwrap_or_default(),
-            terms: vec![(SDF_TERMS[0], e.pixel), (SDF_TERMS[1], e.distance)],
+            terms: vec![
+                (SDF_TERMS[0], e.pixel),
+                (SDF_TERMS[1], e.distance),
+                (SDF_TERMS[2], e.crossing),
+            ],
         })
     }
 }
