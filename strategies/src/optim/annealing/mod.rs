@@ -144,17 +144,7 @@ pub fn metropolis_phase<O: Anneal + Differentiable>(
     })?;
     let mut accepted = 0;
     for _ in 0..cfg.candidates {
-        let mut cand: Vec<f64> = theta
-            .iter()
-            .map(|t| t + std * rng.sample::<f64, _>(StandardNormal))
-            .collect();
-        problem.problem("project", |p| {
-            p.project(&mut cand);
-            Ok(())
-        })?;
-        let c = problem.problem("anneal_cost", |p| {
-            p.anneal_cost(&cand, stream, frac).map_err(to_argmin)
-        })?;
+        let (cand, c) = propose(problem, theta, std, &mut rng, stream, frac)?;
         let delta = c - cost;
         let u: f64 = rng.random();
         let accept = c.is_finite()
@@ -166,6 +156,30 @@ pub fn metropolis_phase<O: Anneal + Differentiable>(
         }
     }
     Ok(PhaseStats { accepted, cost })
+}
+
+/// One Gaussian proposal `θ + N(0, std²)` (projected back onto the parameterisation) and its
+/// annealing cost on `stream` at progress `frac`.
+pub(crate) fn propose<O: Anneal + Differentiable>(
+    problem: &mut Problem<O>,
+    theta: &[f64],
+    std: f64,
+    rng: &mut Xoshiro256PlusPlus,
+    stream: u64,
+    frac: f64,
+) -> Result<(Vec<f64>, f64), ArgminError> {
+    let mut cand: Vec<f64> = theta
+        .iter()
+        .map(|t| t + std * rng.sample::<f64, _>(StandardNormal))
+        .collect();
+    problem.problem("project", |p| {
+        p.project(&mut cand);
+        Ok(())
+    })?;
+    let c = problem.problem("anneal_cost", |p| {
+        p.anneal_cost(&cand, stream, frac).map_err(to_argmin)
+    })?;
+    Ok((cand, c))
 }
 
 /// Pure simulated annealing.

@@ -23,13 +23,12 @@ use argmin::core::{Error as ArgminError, KV, KvValue, Problem, Solver, State};
 use serde::{Deserialize, Serialize};
 
 use rand::{Rng, SeedableRng};
-use rand_distr::StandardNormal;
 use rand_xoshiro::Xoshiro256PlusPlus;
 
 use crate::driver::{Differentiable, GradState, Params, to_argmin};
 use crate::error::{Error, Result};
 use crate::optim::adam::{Adam, AdamConfig, adam_iteration};
-use crate::optim::annealing::{Anneal, AnnealingConfig, PhaseStats, metropolis_phase};
+use crate::optim::annealing::{Anneal, AnnealingConfig, PhaseStats, metropolis_phase, propose};
 
 /// Hyper-parameters of the hybrid (defaults: the paper's).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -254,17 +253,7 @@ impl Hybrid {
             let stream = t | (1 << 62);
             let mut best: Option<(f64, Vec<f64>)> = None;
             for _ in 0..cfg.candidates {
-                let mut cand: Vec<f64> = theta
-                    .iter()
-                    .map(|x| x + std * rng.sample::<f64, _>(StandardNormal))
-                    .collect();
-                problem.problem("project", |p| {
-                    p.project(&mut cand);
-                    Ok(())
-                })?;
-                let c = problem.problem("anneal_cost", |p| {
-                    p.anneal_cost(&cand, stream, frac).map_err(to_argmin)
-                })?;
+                let (cand, c) = propose(problem, theta, std, &mut rng, stream, frac)?;
                 if c.is_finite() && best.as_ref().is_none_or(|(b, _)| c < *b) {
                     best = Some((c, cand));
                 }
