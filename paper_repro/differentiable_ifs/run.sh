@@ -13,7 +13,7 @@ OUT="${1:-paper_repro/differentiable_ifs/results}"
 if [ -z "${SKIP_BUILD:-}" ]; then
   cargo build --profile ci -p ifslab-experiments --bin ifslab
   cargo build --profile ci -p ifslab-strategies --example sdf_seeds --example side_by_side \
-    --example draw_silhouettes
+    --example draw_silhouettes --example sdf_learned
   cargo build --profile ci -p ifslab-experiments --example sdf_gradient_field
 fi
 T="${CARGO_TARGET_DIR:-target}/ci"
@@ -52,6 +52,9 @@ done
   --gallery "$OUT/gallery" > "$OUT/koch_seeds_depth1.csv"
 "$T/examples/sdf_seeds" --seeds 10 --jitters 0.06,0.1 --weights 100 --crossing-depth 3 \
   > "$OUT/koch_seeds_depth3.csv"
+
+# Fig. 7: learned symmetry patterns on the same Koch target, seeds 0-4.
+"$T/examples/sdf_learned" --seeds 5 > "$OUT/learned_patterns.txt"
 
 # Fig. 3: descent directions at p2 of the Koch curve (128², depth 5, σ 1.5) over 15×15
 # positions, windows of half-side 0.15 (numbers only) and 0.3 (numbers and picture).

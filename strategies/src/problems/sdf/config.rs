@@ -11,6 +11,7 @@ use crate::optim::adam::AdamConfig;
 use crate::problems::image::config::StrategyConfig;
 use crate::problems::image::target::Polarity;
 use crate::problems::sdf::init::SdfInit;
+use crate::problems::sdf::learned::LearnedConfig;
 use crate::problems::sdf::problem::SdfLossConfig;
 
 /// How the control points start.
@@ -78,6 +79,10 @@ pub struct SdfConfig {
     /// The strategy (any registered one; Adam with lr 2e-3 by default).
     #[serde(default = "default_strategy")]
     pub strategy: StrategyConfig,
+    /// Learned pairs (absent: the pattern's own pairs, fixed; see
+    /// [`crate::problems::sdf::learned`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub learned: Option<LearnedConfig>,
 }
 
 fn default_size() -> usize {
@@ -121,6 +126,7 @@ impl SdfConfig {
             loss: SdfLossConfig::default(),
             init: SdfInitConfig::default(),
             strategy: default_strategy(),
+            learned: None,
         }
     }
 
@@ -200,6 +206,9 @@ impl SdfConfig {
             ));
         }
         self.loss.validate()?;
+        if let Some(l) = &self.learned {
+            l.validate()?;
+        }
         self.strategy.validate()?;
         let p = self.pattern()?;
         let n = p.n_maps();

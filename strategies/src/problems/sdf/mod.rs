@@ -18,6 +18,7 @@
 pub mod config;
 pub mod crossing;
 pub mod init;
+pub mod learned;
 pub mod problem;
 pub mod run;
 pub mod target;
@@ -25,6 +26,7 @@ pub mod target;
 pub use config::{SdfConfig, SdfInitConfig};
 pub use crossing::{MAX_CROSSING_DEPTH, crossing_depth2, crossing_penalty};
 pub use init::{SdfInit, initial_points};
+pub use learned::{LearnedConfig, LearnedPattern};
 pub use problem::{CUTOFF_SIGMAS, SDF_TERMS, SdfEval, SdfLossConfig, SdfProblem};
 pub use run::{SdfOutcome, run_sdf, sdf_problem};
 pub use target::{INK, best_fit_line, distance_transform};

@@ -18,6 +18,7 @@ use crate::driver::{Differentiable, Evaluation};
 use crate::error::{Error, Result};
 use crate::optim::annealing::Anneal;
 use crate::problems::sdf::crossing::{MAX_CROSSING_DEPTH, crossing_penalty};
+use crate::problems::sdf::learned::{LearnedConfig, LearnedPattern};
 use crate::problems::sdf::target::distance_transform;
 
 /// Names of the logged loss terms, in column order.
@@ -105,6 +106,8 @@ pub struct SdfProblem {
     target: Vec<f64>,
     /// The target's distance transform in units of the image side (distance term only).
     target_dist: Option<Vec<f64>>,
+    /// Learned pairs: θ holds softmax logits after the points.
+    learned: Option<LearnedPattern>,
 }
 
 /// One evaluation's numbers.
@@ -173,6 +176,7 @@ impl SdfProblem {
             loss,
             target,
             target_dist,
+            learned: None,
         })
     }
 
@@ -188,6 +192,19 @@ impl SdfProblem {
         }
         self.sigma_schedule = Some((sigma_start, iterations.max(1)));
         Ok(self)
+    }
+
+    /// Learned pairs (see [`crate::problems::sdf::learned`]): θ becomes the control points
+    /// followed by one logit per pair endpoint and control point; τ shrinks over
+    /// `iterations`.
+    pub fn with_learned_pattern(mut self, cfg: LearnedConfig, iterations: u64) -> Result<Self> {
+        self.learned = Some(LearnedPattern::new(self.pattern.clone(), cfg, iterations)?);
+        Ok(self)
+    }
+
+    /// The learned pairs, when θ holds logits.
+    pub fn learned(&self) -> Option<&LearnedPattern> {
+        self.learned.as_ref()
     }
 
     /// σ at progress `frac = t/T` of the run.
@@ -231,9 +248,19 @@ impl SdfProblem {
         self.sigma
     }
 
-    /// The pattern with control points θ.
+    /// The pattern with control points θ (with learned pairs: their hard assignment).
     pub fn pattern_at(&self, theta: &[f64]) -> Result<Pattern> {
-        Ok(self.pattern.with_flat_points(theta)?)
+        match &self.learned {
+            Some(l) => l.hard_pattern(theta),
+            None => Ok(self.pattern.with_flat_points(theta)?),
+        }
+    }
+
+    /// The final temperature of learned pairs (1 without: unused).
+    fn final_temperature(&self) -> f64 {
+        self.learned
+            .as_ref()
+            .map_or(1.0, |l| l.temperature_at(u64::MAX))
     }
 
     /// The rendered image at θ (with the final σ).
@@ -249,7 +276,16 @@ impl SdfProblem {
 
     /// Loss terms at θ drawn with width `sigma`, and the gradient when `grad`.
     pub fn eval_with(&self, theta: &[f64], grad: bool, sigma: f64) -> Result<SdfEval> {
-        let p = self.pattern_at(theta)?;
+        self.eval_at(theta, grad, sigma, self.final_temperature())
+    }
+
+    /// Loss terms at θ drawn with width `sigma`, learned pairs (if any) at temperature
+    /// `tau`, and the gradient when `grad`.
+    pub fn eval_at(&self, theta: &[f64], grad: bool, sigma: f64, tau: f64) -> Result<SdfEval> {
+        let p = match &self.learned {
+            Some(l) => l.soft_pattern(theta, tau)?,
+            None => self.pattern.with_flat_points(theta)?,
+        };
         let render = SdfRenderConfig {
             cutoff: self.render.cutoff.map(|_| CUTOFF_SIGMAS * sigma),
             ..self.render
@@ -307,7 +343,10 @@ impl SdfProblem {
                     *x += self.loss.crossing * c;
                 }
             }
-            out.grad = Some(g);
+            out.grad = Some(match &self.learned {
+                Some(l) => l.backward(theta, tau, &g)?,
+                None => g,
+            });
         }
         Ok(out)
     }
@@ -316,7 +355,11 @@ impl SdfProblem {
 impl Differentiable for SdfProblem {
     /// Deterministic: the iteration only sets σ when σ follows a schedule.
     fn evaluate(&self, theta: &[f64], iter: u64) -> Result<Evaluation> {
-        let e = self.eval_with(theta, true, self.sigma_at(self.frac(iter)))?;
+        let tau = self
+            .learned
+            .as_ref()
+            .map_or(1.0, |l| l.temperature_at(iter));
+        let e = self.eval_at(theta, true, self.sigma_at(self.frac(iter)), tau)?;
         Ok(Evaluation {
             loss: e.loss,
             grad: e.grad.unwrap_or_default(),
@@ -333,6 +376,9 @@ impl Anneal for SdfProblem {
     /// The loss itself at progress `frac` (the render is deterministic: the stream does
     /// not matter).
     fn anneal_cost(&self, theta: &[f64], _stream: u64, frac: f64) -> Result<f64> {
-        Ok(self.eval_with(theta, false, self.sigma_at(frac))?.loss)
+        let tau = self.learned.as_ref().map_or(1.0, |l| {
+            l.temperature_at((frac.clamp(0.0, 1.0) * l.iterations() as f64) as u64)
+        });
+        Ok(self.eval_at(theta, false, self.sigma_at(frac), tau)?.loss)
     }
 }

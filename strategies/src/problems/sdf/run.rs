@@ -66,6 +66,10 @@ pub fn sdf_problem(cfg: &SdfConfig, target: Vec<f64>) -> Result<SdfProblem> {
         cfg.sigma,
         cfg.loss.clone(),
     )?;
+    let p = match &cfg.learned {
+        Some(l) => p.with_learned_pattern(l.clone(), cfg.iterations)?,
+        None => p,
+    };
     match cfg.sigma_start {
         Some(s0) => p.with_sigma_schedule(s0, cfg.iterations),
         None => Ok(p),
@@ -116,6 +120,10 @@ pub fn run_sdf(
             cfg.init.jitter,
             cfg.seed,
         )?;
+        let t = match problem.learned() {
+            Some(l) => l.start(&t, cfg.seed)?,
+            None => t,
+        };
         ifslab::io::write_atomic(
             &start_path,
             serde_json::to_string(&t)
