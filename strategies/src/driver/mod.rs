@@ -14,6 +14,7 @@ mod log;
 pub use checkpoint::JsonCheckpoint;
 pub use log::CsvLog;
 
+use argmin::core::observers::Observe;
 use argmin::core::{IterState, KV, KvValue};
 
 use std::fmt::Debug;
@@ -52,6 +53,31 @@ pub fn kv_of(eval: &Evaluation) -> KV {
         kv.insert(*name, KvValue::Float(*v));
     }
     kv
+}
+
+/// Lets a boxed observer (a run's log, checkpoint and progress) be handed to argmin's
+/// executor, which takes observers by value.
+pub(crate) struct Boxed(pub Box<dyn Observe<GradState> + Send>);
+
+impl Observe<GradState> for Boxed {
+    fn observe_init(
+        &mut self,
+        name: &str,
+        state: &GradState,
+        kv: &KV,
+    ) -> std::result::Result<(), argmin::core::Error> {
+        self.0.observe_init(name, state, kv)
+    }
+    fn observe_iter(
+        &mut self,
+        state: &GradState,
+        kv: &KV,
+    ) -> std::result::Result<(), argmin::core::Error> {
+        self.0.observe_iter(state, kv)
+    }
+    fn observe_final(&mut self, state: &GradState) -> std::result::Result<(), argmin::core::Error> {
+        self.0.observe_final(state)
+    }
 }
 
 /// Converts the strategies' error into argmin's.

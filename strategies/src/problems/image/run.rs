@@ -5,10 +5,10 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use argmin::core::observers::{Observe, ObserverMode};
-use argmin::core::{Error as ArgminError, Executor, KV, State};
+use argmin::core::{Executor, State};
 use ifslab::model::Affine2;
 
-use crate::driver::{CsvLog, GradState, JsonCheckpoint, RunSpec};
+use crate::driver::{Boxed, CsvLog, GradState, JsonCheckpoint, RunSpec};
 use crate::error::{Error, Result};
 use crate::problems::image::config::InversionConfig;
 use crate::problems::image::init::initial_theta;
@@ -119,26 +119,6 @@ fn select(
             start: start_score,
         },
     ))
-}
-
-/// Lets a boxed observer be handed to argmin's executor.
-struct Boxed(Box<dyn Observe<GradState> + Send>);
-
-impl Observe<GradState> for Boxed {
-    fn observe_init(
-        &mut self,
-        name: &str,
-        state: &GradState,
-        kv: &KV,
-    ) -> std::result::Result<(), ArgminError> {
-        self.0.observe_init(name, state, kv)
-    }
-    fn observe_iter(&mut self, state: &GradState, kv: &KV) -> std::result::Result<(), ArgminError> {
-        self.0.observe_iter(state, kv)
-    }
-    fn observe_final(&mut self, state: &GradState) -> std::result::Result<(), ArgminError> {
-        self.0.observe_final(state)
-    }
 }
 
 /// Refuses `dir` for a fresh run if it already holds one (its checkpoint), so that nothing of

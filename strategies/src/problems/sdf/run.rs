@@ -5,10 +5,10 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use argmin::core::observers::{Observe, ObserverMode};
-use argmin::core::{Error as ArgminError, Executor, KV, State};
+use argmin::core::{Executor, State};
 use ifslab::render::sdf::SdfView;
 
-use crate::driver::{CsvLog, GradState, JsonCheckpoint, RunSpec};
+use crate::driver::{Boxed, CsvLog, GradState, JsonCheckpoint, RunSpec};
 use crate::error::{Error, Result};
 use crate::problems::image::run::{CHECKPOINT_FILE, LOG_FILE, START_FILE, ensure_new_run_dir};
 use crate::problems::sdf::config::SdfConfig;
@@ -34,26 +34,6 @@ pub struct SdfOutcome {
     pub seconds: f64,
     /// The CSV log.
     pub log: PathBuf,
-}
-
-/// Lets a boxed observer be handed to argmin's executor.
-struct Boxed(Box<dyn Observe<GradState> + Send>);
-
-impl Observe<GradState> for Boxed {
-    fn observe_init(
-        &mut self,
-        name: &str,
-        state: &GradState,
-        kv: &KV,
-    ) -> std::result::Result<(), ArgminError> {
-        self.0.observe_init(name, state, kv)
-    }
-    fn observe_iter(&mut self, state: &GradState, kv: &KV) -> std::result::Result<(), ArgminError> {
-        self.0.observe_iter(state, kv)
-    }
-    fn observe_final(&mut self, state: &GradState) -> std::result::Result<(), ArgminError> {
-        self.0.observe_final(state)
-    }
 }
 
 /// The problem `cfg` describes for `target` (ink, `size × size`, seen as the unit square).
