@@ -595,3 +595,79 @@ fn sdf_fit_and_render_end_to_end() {
     let (ok, msg) = ifslab(&["sdf", "fit", &p("k.png"), "--sigma", "0", "-o", &p("y")]);
     assert!(!ok && msg.contains("sigma"), "{msg}");
 }
+
+/// `ifslab landscape` on a segment-map fit: a slice through the pattern's own points and one
+/// through the fitted points, CSV and heat map each, and folders that are not a finished fit
+/// are refused with a clear error. (That the minimum through the true points is at the grid's
+/// centre is checked in the strategies crate's `sdf` tests.)
+#[test]
+fn landscape_of_a_segment_map_fit() {
+    let tmp = tempfile::tempdir().unwrap();
+    let p = |name: &str| tmp.path().join(name).to_string_lossy().into_owned();
+    let (ok, msg) = ifslab(&[
+        "sdf",
+        "render",
+        "koch",
+        "--size",
+        "64",
+        "--depth",
+        "3",
+        "--sigma",
+        "1.5",
+        "-o",
+        &p("k.png"),
+    ]);
+    assert!(ok, "{msg}");
+    let (ok, msg) = ifslab(&[
+        "sdf",
+        "fit",
+        &p("k.png"),
+        "--pattern",
+        "koch",
+        "--depth",
+        "3",
+        "--size",
+        "64",
+        "--iterations",
+        "5",
+        "-o",
+        &p("fit"),
+    ]);
+    assert!(ok, "{msg}");
+    let png = p("land.png");
+    let (ok, msg) = ifslab(&[
+        "landscape",
+        &p("fit"),
+        "--at",
+        "truth",
+        "--directions",
+        "2,3",
+        "--resolution",
+        "7",
+        "--extent",
+        "0.05",
+        "-o",
+        &png,
+    ]);
+    assert!(ok && msg.contains("7×7 grid"), "{msg}");
+    let csv = std::fs::read_to_string(tmp.path().join("land.csv")).unwrap();
+    let rows: Vec<Vec<f64>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 49);
+    assert!(rows.iter().all(|r| r.len() == 4 && r[2].is_finite()));
+    assert!(tmp.path().join("land.png").is_file());
+    // Around the fitted points, with the default random directions.
+    let (ok, msg) = ifslab(&["landscape", &p("fit"), "--resolution", "3"]);
+    assert!(ok && msg.contains("3×3 grid"), "{msg}");
+    assert!(tmp.path().join("fit/landscape_recovered.png").is_file());
+    // Not a run folder; a fit without its fitted pattern.
+    std::fs::create_dir(tmp.path().join("empty")).unwrap();
+    let (ok, msg) = ifslab(&["landscape", &p("empty")]);
+    assert!(!ok && msg.contains("is not a run folder"), "{msg}");
+    std::fs::remove_file(tmp.path().join("fit/pattern.json")).unwrap();
+    let (ok, msg) = ifslab(&["landscape", &p("fit"), "--resolution", "3"]);
+    assert!(!ok && msg.contains("has no fitted pattern"), "{msg}");
+}

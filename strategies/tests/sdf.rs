@@ -231,3 +231,50 @@ fn coarse_to_fine_recovers_koch_at_256() {
     let err = koch_error(&out.theta, &koch_truth().flat_points());
     assert!(err < 1e-2, "control points off by {err}: {:?}", out.theta);
 }
+
+#[test]
+fn the_landscape_through_the_true_points_has_its_minimum_at_the_centre() {
+    use ifslab_strategies::problems::image::{Directions, LandscapeConfig};
+    use ifslab_strategies::problems::sdf::sdf_landscape;
+    let (size, depth, sigma) = (64, 3, 1.5);
+    let problem = SdfProblem::new(
+        koch_truth(),
+        koch_target(size, depth, sigma),
+        SdfView::unit_square(size),
+        depth,
+        sigma,
+        SdfLossConfig::default(),
+    )
+    .unwrap();
+    let truth = koch_truth().flat_points();
+    for directions in [
+        Directions::Coordinates { i: 2, j: 3 },
+        Directions::Random { seed: 3 },
+    ] {
+        let lc = LandscapeConfig {
+            resolution: 7,
+            extent: 0.05,
+            directions: directions.clone(),
+            streams: 4,
+        };
+        let l = sdf_landscape(&problem, &truth, &lc, &|| {}).unwrap();
+        assert_eq!(l.total.len(), 49);
+        assert!(l.failed.is_empty(), "{:?}", l.failed);
+        let (a, b, v) = l.minimum();
+        let step = 2.0 * lc.extent / 6.0;
+        assert!(
+            a.abs() <= step + 1e-12 && b.abs() <= step + 1e-12,
+            "{directions:?}: minimum {v} at ({a}, {b}), centre {}",
+            l.centre_total()
+        );
+        assert!(l.centre_total() < 1e-9, "centre loss {}", l.centre_total());
+        let corner = l.total[0];
+        assert!(
+            corner > 10.0 * l.centre_total().max(1e-12),
+            "flat slice: corner {corner}"
+        );
+    }
+    // A θ of the wrong length is refused.
+    let lc = LandscapeConfig::default();
+    assert!(sdf_landscape(&problem, &truth[..4], &lc, &|| {}).is_err());
+}

@@ -1,4 +1,4 @@
-//! `ifslab landscape RUN_DIR`: the objective of an inversion run on a 2-D slice of parameter
+//! `ifslab landscape RUN_DIR`: the objective of an inversion (or segment-map) run on a 2-D slice of parameter
 //! space through its recovered code (or the target's true code), as a heat map.
 
 use std::path::PathBuf;
@@ -11,9 +11,12 @@ use crate::bars::Bar;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// A run folder written by `invert`, `run` or `demo` (holds config.toml and code.json).
+    /// A run folder written by `invert`, `run` or `demo` (holds config.toml and code.json),
+    /// or a segment-map fit by `sdf fit` (config.toml and pattern.json: the slice is through
+    /// its control points; θ index 2k, 2k+1 is point k's x, y).
     pub run_dir: PathBuf,
-    /// Centre the slice on the recovered code or on the target's true code (code targets).
+    /// Centre the slice on the recovered code or on the target's true code (code targets);
+    /// for a segment-map fit, `truth` is the pattern its config names.
     #[arg(long, value_enum, default_value_t = At::Recovered)]
     pub at: At,
     /// `random` (two filter-normalised random directions) or `I,J` (raw θ coordinates).

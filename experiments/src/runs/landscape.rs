@@ -1,26 +1,33 @@
 //! The loss landscape of an inversion run: the objective on a 2-D slice of parameter space
 //! through its recovered code (or the target's true code), written as a CSV and a heat map.
+//! Segment-map fits (`problem = "sdf"`) get the same slice through their fitted control
+//! points (or the pattern's own points), on the same grid and plots.
 
 use std::fmt::Write as _;
 use std::path::Path;
 
 use anyhow::{Context, bail};
 use ifslab::model::IfsCode;
+use ifslab::model::segment::PatternFile;
 use ifslab_strategies::problems::image::{
-    Directions, ImageProblem, InversionConfig, LandscapeConfig, landscape,
+    Directions, FRAMED_TARGET_FILE, ImageProblem, InversionConfig, Landscape, LandscapeConfig,
+    landscape, load_framed_target,
 };
+use ifslab_strategies::problems::sdf::{SdfConfig, sdf_landscape, sdf_problem};
 
 use crate::codes::resolve_code;
 use crate::plot::{Heat, heatmaps};
 use crate::progress::Progress;
 use crate::runs::inversion::{CONFIG_FILE, run_target};
+use crate::runs::sdf::FITTED_PATTERN_FILE;
 
 /// Which code the slice goes through.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Centre {
-    /// The run's recovered code (`code.json`).
+    /// The run's recovered code (`code.json`; a segment-map fit's `pattern.json`).
     Recovered,
-    /// The run's target code (code targets only).
+    /// The run's target code (code targets only); for a segment-map fit, the control
+    /// points of the pattern its config names (the truth when the target was drawn from it).
     Truth,
 }
 
@@ -58,6 +65,9 @@ pub fn run_landscape(
     progress: &dyn Progress,
 ) -> anyhow::Result<LandscapeReport> {
     let cfg_path = run_dir.join(CONFIG_FILE);
+    if problem_of(&cfg_path)?.as_deref() == Some("sdf") {
+        return run_sdf_landscape(run_dir, centre, lc, out, progress);
+    }
     let cfg = InversionConfig::load(&cfg_path)
         .with_context(|| format!("{} is not a run folder", run_dir.display()))?;
     let maps = match centre {
@@ -83,6 +93,111 @@ pub fn run_landscape(
     let l = landscape(&problem, &theta, lc, &|| progress.inc(1))?;
     progress.finish();
 
+    let title = format!(
+        "loss landscape around the {} code ({})",
+        match centre {
+            Centre::Recovered => "recovered",
+            Centre::Truth => "true",
+        },
+        cfg.target
+            .code
+            .as_deref()
+            .or(cfg.target.image.as_ref().and_then(|p| p.to_str()))
+            .unwrap_or("target")
+    );
+    write_landscape(&l, lc, out, &title, "multi-scale MSE", "θ")
+}
+
+/// The `problem` key of the config at `path` (`None` when absent: an image run), with a
+/// clear error when the folder holds no readable config.
+fn problem_of(path: &Path) -> anyhow::Result<Option<String>> {
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let text = std::fs::read_to_string(path).with_context(|| {
+        format!(
+            "{} is not a run folder (no readable {CONFIG_FILE})",
+            dir.display()
+        )
+    })?;
+    let table: toml::Table = text.parse().with_context(|| {
+        format!(
+            "{} is not a run folder: {} is not valid TOML",
+            dir.display(),
+            path.display()
+        )
+    })?;
+    Ok(table
+        .get("problem")
+        .and_then(|v| v.as_str())
+        .map(str::to_owned))
+}
+
+/// The landscape of a segment-map fit: the loss over a slice of control-point space.
+fn run_sdf_landscape(
+    run_dir: &Path,
+    centre: Centre,
+    lc: &LandscapeConfig,
+    out: &Path,
+    progress: &dyn Progress,
+) -> anyhow::Result<LandscapeReport> {
+    let cfg_path = run_dir.join(CONFIG_FILE);
+    let text = std::fs::read_to_string(&cfg_path)?;
+    let mut table: toml::Table = text.parse()?;
+    table.remove("problem");
+    let cfg = SdfConfig::from_toml(&toml::to_string(&table)?, &cfg_path)
+        .with_context(|| format!("{} is not a segment-map run folder", run_dir.display()))?
+        .relative_to(run_dir);
+    if cfg.learned.is_some() {
+        bail!(
+            "{}: the landscape of a learned-pattern fit is not supported",
+            run_dir.display()
+        );
+    }
+    let theta = match centre {
+        Centre::Recovered => {
+            let path = run_dir.join(FITTED_PATTERN_FILE);
+            PatternFile::load(&path)
+                .and_then(|f| f.pattern(&path))
+                .with_context(|| {
+                    format!(
+                        "{} has no fitted pattern ({FITTED_PATTERN_FILE}): has the fit finished?",
+                        run_dir.display()
+                    )
+                })?
+                .flat_points()
+        }
+        Centre::Truth => cfg.pattern()?.flat_points(),
+    };
+    let ink: Vec<f64> = load_framed_target(&run_dir.join(FRAMED_TARGET_FILE), cfg.size)
+        .with_context(|| format!("{} has no framed target", run_dir.display()))?
+        .iter()
+        .map(|&v| v as f64)
+        .collect();
+    let problem = sdf_problem(&cfg, ink)?;
+    lc.validate(theta.len())?;
+    progress.start("landscape", (lc.resolution * lc.resolution) as u64);
+    let l = sdf_landscape(&problem, &theta, lc, &|| progress.inc(1))?;
+    progress.finish();
+    let title = format!(
+        "loss landscape around the {} control points ({})",
+        match centre {
+            Centre::Recovered => "fitted",
+            Centre::Truth => "pattern's",
+        },
+        cfg.pattern
+    );
+    write_landscape(&l, lc, out, &title, "pixel MSE", "θ")
+}
+
+/// Writes the slice's CSV (`alpha,beta,total,<term>`) beside `out` and its two heat maps
+/// (the objective and `term`) to `out`; `param` names θ on coordinate axes.
+fn write_landscape(
+    l: &Landscape,
+    lc: &LandscapeConfig,
+    out: &Path,
+    title: &str,
+    term: &'static str,
+    param: &str,
+) -> anyhow::Result<LandscapeReport> {
     let mut csv = String::from("alpha,beta,total,msmse\n");
     let n = l.alphas.len();
     for (k, (t, m)) in l.total.iter().zip(&l.msmse).enumerate() {
@@ -92,22 +207,11 @@ pub fn run_landscape(
     let (ma, mb, mv) = l.minimum();
     let axes = match lc.directions {
         Directions::Random { .. } => ("α (direction 1)".to_owned(), "β (direction 2)".to_owned()),
-        Directions::Coordinates { i, j } => (format!("Δθ[{i}]"), format!("Δθ[{j}]")),
+        Directions::Coordinates { i, j } => (format!("Δ{param}[{i}]"), format!("Δ{param}[{j}]")),
     };
     heatmaps(
         out,
-        &format!(
-            "loss landscape around the {} code ({})",
-            match centre {
-                Centre::Recovered => "recovered",
-                Centre::Truth => "true",
-            },
-            cfg.target
-                .code
-                .as_deref()
-                .or(cfg.target.image.as_ref().and_then(|p| p.to_str()))
-                .unwrap_or("target")
-        ),
+        title,
         (&axes.0, &axes.1),
         &l.alphas,
         &l.betas,
@@ -117,7 +221,7 @@ pub fn run_landscape(
                 values: &l.total,
             },
             Heat {
-                title: "multi-scale MSE",
+                title: term,
                 values: &l.msmse,
             },
         ],

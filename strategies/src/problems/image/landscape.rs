@@ -105,7 +105,8 @@ pub struct Landscape {
     pub betas: Vec<f64>,
     /// The full objective (the run's loss weights) at every grid point.
     pub total: Vec<f64>,
-    /// The multi-scale MSE term alone (what annealing accepts on).
+    /// The multi-scale MSE term alone (what annealing accepts on); for segment-map fits,
+    /// the pixel term.
     pub msmse: Vec<f64>,
     /// The two directions in θ space.
     pub d1: Vec<f64>,
@@ -180,13 +181,38 @@ pub fn landscape(
     tick: &(dyn Fn() + Sync),
 ) -> Result<Landscape> {
     cfg.validate(theta.len())?;
+    let maps = problem.model().n_maps(theta)?.max(1);
+    let block = theta.len() / maps;
+    let eval = |th: &[f64], stream: u64| -> Result<(f64, f64)> {
+        let mut th = th.to_vec();
+        problem.model().project(&mut th);
+        let br = problem.loss_breakdown(&th, stream)?;
+        Ok((br.total, br.msmse.unwrap_or(f64::NAN)))
+    };
+    slice(theta, block, cfg, &eval, tick)
+}
+
+/// An objective on a slice: `(θ, stream) → (objective, one of its terms)`.
+pub type SliceObjective<'a> = dyn Fn(&[f64], u64) -> Result<(f64, f64)> + Sync + 'a;
+
+/// Samples any objective on the slice `cfg` describes through `theta` (random directions
+/// filter-normalised per block of `block` values). `eval(θ, stream)` gives the objective
+/// and one term of it (the second heat map); it is called on streams `u64::MAX - s` for
+/// `s` in `0..streams` (streams no optimisation iteration uses). A failed point away from
+/// the centre is recorded in `failed` with NaN values; a failure at the centre is an error.
+pub fn slice(
+    theta: &[f64],
+    block: usize,
+    cfg: &LandscapeConfig,
+    eval: &SliceObjective<'_>,
+    tick: &(dyn Fn() + Sync),
+) -> Result<Landscape> {
+    cfg.validate(theta.len())?;
     if let Some(i) = theta.iter().position(|v| !v.is_finite()) {
         return Err(Error::InvalidInput(format!(
             "θ has a non-finite value at index {i}"
         )));
     }
-    let maps = problem.model().n_maps(theta)?.max(1);
-    let block = theta.len() / maps;
     let (d1, d2) = directions(theta, block, &cfg.directions);
     let n = cfg.resolution;
     let steps: Vec<f64> = (0..n)
@@ -197,24 +223,22 @@ pub fn landscape(
     let mut failed = Vec::new();
     for &b in &steps {
         for &a in &steps {
-            let mut th: Vec<f64> = theta
+            let th: Vec<f64> = theta
                 .iter()
                 .zip(d1.iter().zip(&d2))
                 .map(|(t, (u, v))| t + a * u + b * v)
                 .collect();
-            problem.model().project(&mut th);
             let centre = a == 0.0 && b == 0.0;
             let (mut t_sum, mut m_sum) = (0.0, 0.0);
             for s in 0..cfg.streams {
-                // Streams no optimisation iteration uses.
-                match problem.loss_breakdown(&th, u64::MAX - s) {
-                    Ok(br) => {
-                        t_sum += br.total;
-                        m_sum += br.msmse.unwrap_or(f64::NAN);
+                match eval(&th, u64::MAX - s) {
+                    Ok((t, m)) => {
+                        t_sum += t;
+                        m_sum += m;
                     }
-                    // Away from θ* a step can leave the contractive set (a naive
-                    // parameterisation) and the chaos game diverges: that point has no
-                    // loss, and the count is reported.
+                    // Away from θ* a step can leave the valid set (e.g. a non-contractive
+                    // code whose chaos game diverges): that point has no loss, and the
+                    // count is reported.
                     Err(e) if !centre => {
                         failed.push(format!("α = {a:.3}, β = {b:.3}: {e}"));
                         t_sum = f64::NAN;

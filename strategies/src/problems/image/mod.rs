@@ -23,7 +23,7 @@ pub mod target;
 
 pub use config::{InitKind, InversionConfig, StrategyConfig, TargetConfig};
 pub use init::initial_theta;
-pub use landscape::{Directions, Landscape, LandscapeConfig, landscape};
+pub use landscape::{Directions, Landscape, LandscapeConfig, landscape, slice};
 pub use model::{
     AffineModel, AnyModel, DrawOptions, ImageModel, MODELS, SimilitudeModel, find_model,
 };

@@ -8,6 +8,7 @@
 //!   gradient;
 //! - [`crossing`]: the penalty on copies of the base figure crossing each other (the
 //!   barrier the paper proposes against the local optima of its Fig. 4 and 7);
+//! - [`mod@landscape`]: the loss on a 2-D slice of control-point space (`ifslab landscape`);
 //! - [`config`]: the validated TOML configuration (`problem = "sdf"`);
 //! - [`run`]: start, solver, executor, resume.
 //!
@@ -18,6 +19,7 @@
 pub mod config;
 pub mod crossing;
 pub mod init;
+pub mod landscape;
 pub mod learned;
 pub mod problem;
 pub mod run;
@@ -26,6 +28,7 @@ pub mod target;
 pub use config::{SdfConfig, SdfInitConfig};
 pub use crossing::{MAX_CROSSING_DEPTH, crossing_depth2, crossing_penalty};
 pub use init::{SdfInit, initial_points};
+pub use landscape::sdf_landscape;
 pub use learned::{LearnedConfig, LearnedPattern};
 pub use problem::{CUTOFF_SIGMAS, SDF_TERMS, SdfEval, SdfLossConfig, SdfProblem};
 pub use run::{SdfOutcome, run_sdf, sdf_problem};
