@@ -27,9 +27,31 @@ use crate::error::{Error, Result};
 use crate::model::affine::{Affine2, AffineN};
 use crate::model::probs::{ProbabilityRule, validate_probabilities};
 
+/// The error for JSON `text` (from `origin`, a `what` such as "code file") that serde
+/// refused: JSON has no NaN or infinity, but Python's json module writes bare `NaN` and
+/// `Infinity` tokens and overflowing literals parse as infinite, so those are named with
+/// their line and column; anything else is a parse error.
+pub(crate) fn json_error(e: serde_json::Error, text: &str, origin: &Path, what: &str) -> Error {
+    if let Some((line, col, token)) = find_non_finite_token(text) {
+        return Error::NonFinite {
+            what: format!("{what} {}", origin.display()),
+            location: format!("line {line}, column {col} (`{token}`)"),
+            value: if token.contains("NaN") {
+                f64::NAN
+            } else {
+                f64::INFINITY
+            },
+        };
+    }
+    Error::Parse {
+        path: origin.to_owned(),
+        message: e.to_string(),
+    }
+}
+
 /// The first bare `NaN`/`Infinity` token or out-of-range number outside strings, as
 /// `(line, column, token)`, both 1-based.
-pub(crate) fn find_non_finite_token(text: &str) -> Option<(usize, usize, String)> {
+fn find_non_finite_token(text: &str) -> Option<(usize, usize, String)> {
     let mut in_string = false;
     let mut escaped = false;
     let bytes = text.as_bytes();
@@ -350,25 +372,8 @@ impl IfsCode {
 
     /// Parses and validates a code from JSON text; `origin` names the source in errors.
     pub fn from_json(text: &str, origin: &Path) -> Result<Self> {
-        let doc: CodeFile = serde_json::from_str(text).map_err(|e| {
-            // JSON has no NaN or infinity, but Python's json module writes bare `NaN` and
-            // `Infinity` tokens and overflowing literals parse as infinite: name them.
-            if let Some((line, col, token)) = find_non_finite_token(text) {
-                return Error::NonFinite {
-                    what: format!("code file {}", origin.display()),
-                    location: format!("line {line}, column {col} (`{token}`)"),
-                    value: if token.contains("NaN") {
-                        f64::NAN
-                    } else {
-                        f64::INFINITY
-                    },
-                };
-            }
-            Error::Parse {
-                path: origin.to_owned(),
-                message: e.to_string(),
-            }
-        })?;
+        let doc: CodeFile =
+            serde_json::from_str(text).map_err(|e| json_error(e, text, origin, "code file"))?;
         IfsCode::from_file_doc(doc)
     }
 

@@ -22,7 +22,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
-use crate::model::code::find_non_finite_token;
+use crate::model::code::json_error;
 use crate::model::segment::pattern::{BaseFigure, Pair, Pattern};
 
 /// The format tag written into every pattern file.
@@ -65,23 +65,8 @@ impl PatternFile {
     /// Parses JSON text; `origin` names the source in errors. The pattern is not yet
     /// validated (see [`PatternFile::pattern`]).
     pub fn from_json(text: &str, origin: &Path) -> Result<Self> {
-        let doc: PatternFile = serde_json::from_str(text).map_err(|e| {
-            if let Some((line, col, token)) = find_non_finite_token(text) {
-                return Error::NonFinite {
-                    what: format!("pattern file {}", origin.display()),
-                    location: format!("line {line}, column {col} (`{token}`)"),
-                    value: if token.contains("NaN") {
-                        f64::NAN
-                    } else {
-                        f64::INFINITY
-                    },
-                };
-            }
-            Error::Parse {
-                path: origin.to_owned(),
-                message: e.to_string(),
-            }
-        })?;
+        let doc: PatternFile =
+            serde_json::from_str(text).map_err(|e| json_error(e, text, origin, "pattern file"))?;
         if doc.format != PATTERN_FORMAT {
             return Err(Error::Parse {
                 path: origin.to_owned(),

@@ -4,16 +4,16 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use argmin::core::observers::{Observe, ObserverMode};
-use argmin::core::{Executor, State};
+use argmin::core::State;
+use argmin::core::observers::Observe;
 use ifslab::model::Affine2;
 
-use crate::driver::{Boxed, CsvLog, GradState, JsonCheckpoint, RunSpec};
+use crate::driver::{CsvLog, GradState, JsonCheckpoint, RunSpec, execute};
 use crate::error::{Error, Result};
 use crate::problems::image::config::InversionConfig;
 use crate::problems::image::init::initial_theta;
 use crate::problems::image::problem::{ImageProblem, TERMS};
-use crate::registry::{self, AnySolver};
+use crate::registry;
 
 /// File names inside a run folder.
 pub const CHECKPOINT_FILE: &str = "checkpoint.json";
@@ -217,32 +217,4 @@ pub fn run_inversion(
         log: dir.join(LOG_FILE),
         selection,
     })
-}
-
-fn execute(
-    problem: ImageProblem,
-    solver: AnySolver<ImageProblem>,
-    theta0: Vec<f64>,
-    iterations: u64,
-    ckpt: JsonCheckpoint,
-    log: CsvLog,
-    observers: Vec<Box<dyn Observe<GradState> + Send>>,
-) -> Result<(ImageProblem, GradState)> {
-    let mut exec = Executor::new(problem, solver)
-        .configure(|s| s.param(theta0).max_iters(iterations))
-        .checkpointing(ckpt)
-        .add_observer(log, ObserverMode::Always);
-    for o in observers {
-        exec = exec.add_observer(Boxed(o), ObserverMode::Always);
-    }
-    let res = exec.run().map_err(|e| match e.downcast::<Error>() {
-        Ok(ours) => ours,
-        Err(other) => Error::Numerical(format!("optimisation failed: {other}")),
-    })?;
-    let state = res.state().clone();
-    let problem = res
-        .problem
-        .problem
-        .ok_or_else(|| Error::Numerical("the executor lost the problem".into()))?;
-    Ok((problem, state))
 }

@@ -4,11 +4,11 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use argmin::core::observers::{Observe, ObserverMode};
-use argmin::core::{Executor, State};
+use argmin::core::State;
+use argmin::core::observers::Observe;
 use ifslab::render::sdf::SdfView;
 
-use crate::driver::{Boxed, CsvLog, GradState, JsonCheckpoint, RunSpec};
+use crate::driver::{CsvLog, GradState, JsonCheckpoint, RunSpec, execute};
 use crate::error::{Error, Result};
 use crate::problems::image::run::{CHECKPOINT_FILE, LOG_FILE, START_FILE, ensure_new_run_dir};
 use crate::problems::sdf::config::SdfConfig;
@@ -130,22 +130,15 @@ pub fn run_sdf(
     } else {
         start.clone()
     };
-    let mut exec = Executor::new(problem, solver)
-        .configure(|s| s.param(theta0).max_iters(cfg.iterations))
-        .checkpointing(ckpt)
-        .add_observer(log, ObserverMode::Always);
-    for o in observers {
-        exec = exec.add_observer(Boxed(o), ObserverMode::Always);
-    }
-    let res = exec.run().map_err(|e| match e.downcast::<Error>() {
-        Ok(ours) => ours,
-        Err(other) => Error::Numerical(format!("optimisation failed: {other}")),
-    })?;
-    let state = res.state().clone();
-    let problem = res
-        .problem
-        .problem
-        .ok_or_else(|| Error::Numerical("the executor lost the problem".into()))?;
+    let (problem, state) = execute(
+        problem,
+        solver,
+        theta0,
+        cfg.iterations,
+        ckpt,
+        log,
+        observers,
+    )?;
     let last = state
         .get_param()
         .cloned()
