@@ -28,6 +28,7 @@ fn every_example_config_is_valid() {
                 }
                 RunConfig::Texture(c) => Some(c.source.clone()),
                 RunConfig::Sdf(c) => Some(c.target.clone()),
+                RunConfig::Flame(c) => Some(c.target.clone()),
             };
             if let Some(f) = file {
                 assert!(f.is_file(), "{}: {} missing", path.display(), f.display());
@@ -39,7 +40,7 @@ fn every_example_config_is_valid() {
     assert!(n >= 4, "expected the example configs, found {n}");
     assert_eq!(
         problems.into_iter().collect::<Vec<_>>(),
-        ["image", "points", "sdf", "texture"],
+        ["flame", "image", "points", "sdf", "texture"],
         "an example config for every problem"
     );
 }
@@ -670,4 +671,78 @@ fn landscape_of_a_segment_map_fit() {
     std::fs::remove_file(tmp.path().join("fit/pattern.json")).unwrap();
     let (ok, msg) = ifslab(&["landscape", &p("fit"), "--resolution", "3"]);
     assert!(!ok && msg.contains("has no fitted pattern"), "{msg}");
+}
+
+/// `ifslab flame learn`: a small run writes its folder (learned .flame, renders, log,
+/// summary), one variation per layer when there are as many as layers; an unknown
+/// variation is named.
+#[test]
+fn flame_learn_writes_its_run_folder_and_names_bad_variations() {
+    let tmp = tempfile::tempdir().unwrap();
+    let bin = env!("CARGO_BIN_EXE_ifslab");
+    let target = Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/paintings/circles3.png");
+    let out = tmp.path().join("run");
+    let res = Command::new(bin)
+        .args(["flame", "learn"])
+        .arg(&target)
+        .args([
+            "--flames",
+            "2",
+            "--xforms",
+            "4",
+            "--variations",
+            "spherical,handkerchief",
+            "--linear",
+            "2",
+            "--size",
+            "24",
+            "--trajectories",
+            "50",
+            "--iters",
+            "4",
+            "--eval-size",
+            "48",
+            "-o",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    for f in [
+        "learned.flame",
+        "render.png",
+        "render_48.png",
+        "compare.png",
+        "target.png",
+        "log.csv",
+        "loss.png",
+        "summary.json",
+        "config.toml",
+    ] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    let flames = ifslab::model::flame::read_flames(&out.join("learned.flame")).unwrap();
+    assert_eq!(flames.len(), 2);
+    let names: Vec<&str> = flames[1].xforms[3]
+        .variations
+        .iter()
+        .map(|v| v.kind().name())
+        .collect();
+    assert_eq!(names, ["handkerchief"]);
+    assert_eq!(flames[1].xforms[0].variations[0].kind().name(), "linear");
+    let res = Command::new(bin)
+        .args(["flame", "learn"])
+        .arg(&target)
+        .args(["--variations", "spherikal", "-o"])
+        .arg(tmp.path().join("bad"))
+        .env("RUST_BACKTRACE", "0")
+        .output()
+        .unwrap();
+    assert!(!res.status.success());
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(err.contains("unknown variation `spherikal`"), "{err}");
 }

@@ -11,12 +11,15 @@
 //!
 //! - [`flame`]: the fractal flame renderer (flam3's algorithm: colour + density
 //!   histogram, density estimation, log tone map), deterministic and parallel.
+//! - [`flame_diff`]: the differentiable flame pipeline of *Learnable Fractal Flames*
+//!   (sampler → splatter → painter → compositor, RGB), with its reverse pass.
 //!
 //! - [`sdf`]: the differentiable SDF rasteriser of segment-map IFSs (distance to the
 //!   nearest primitive of every word up to depth K, tiled branch-and-bound over the word
 //!   tree, reverse pass to the control points).
 
 pub mod flame;
+pub mod flame_diff;
 pub mod framing;
 pub mod image_io;
 pub mod raster;

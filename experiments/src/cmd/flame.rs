@@ -31,6 +31,59 @@ pub enum Command {
     Convert(ConvertArgs),
     /// SSIM and PSNR of two renders' grey (luminance) images, e.g. ours against flam3's.
     Compare(CompareArgs),
+    /// Learn a colour flame from an image (Bannister & Nowrouzezahrai): one or more layers
+    /// of generators, composited; writes the learned .flame, renders and the loss curve.
+    Learn(LearnArgs),
+}
+
+#[derive(clap::Args, Debug)]
+pub struct LearnArgs {
+    /// The target image (RGB; grey images are used as equal channels, transparency is
+    /// composited over the background).
+    pub target: PathBuf,
+    /// Flame layers, composited bottom first.
+    #[arg(long, default_value_t = 1)]
+    pub flames: usize,
+    /// Generators per layer.
+    #[arg(long, default_value_t = 8)]
+    pub xforms: usize,
+    /// Variations (flam3 names, comma-separated). As many as --flames: one per layer (the
+    /// authors' Fighting Forms); otherwise every layer's non-linear generators get all.
+    #[arg(long, value_delimiter = ',', default_value = "linear")]
+    pub variations: Vec<String>,
+    /// Leading generators of each layer that stay linear.
+    #[arg(long, default_value_t = 0)]
+    pub linear: usize,
+    /// Training image side in pixels.
+    #[arg(long, default_value_t = 100)]
+    pub size: usize,
+    /// Trajectories per layer (each of 1000 steps: the default draws 10⁶ samples).
+    #[arg(long, default_value_t = 1000)]
+    pub trajectories: usize,
+    /// Side of the final render beside the training-size one (0: none).
+    #[arg(long, default_value_t = 400)]
+    pub eval_size: usize,
+    /// Iterations.
+    #[arg(long, default_value_t = 150)]
+    pub iters: u64,
+    /// Base learning rate (gradient descent; group rates multiply it).
+    #[arg(long, default_value_t = 0.1)]
+    pub lr: f64,
+    /// Background: white, black, learned.
+    #[arg(long, default_value = "white")]
+    pub background: String,
+    /// Seed of the start and the generator order.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// A TOML config (`problem = "flame"`) instead of the flags above.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Run folder.
+    #[arg(short, long, default_value = "out/flame")]
+    pub output: PathBuf,
+    /// Continue the run in the output folder from its last checkpoint.
+    #[arg(long)]
+    pub resume: bool,
 }
 
 #[derive(clap::Args, Debug)]
@@ -129,7 +182,61 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Command::Info(a) => info(a),
         Command::Convert(a) => convert(a),
         Command::Compare(a) => compare(a),
+        Command::Learn(a) => learn(a),
     }
+}
+
+fn learn(a: LearnArgs) -> anyhow::Result<()> {
+    use ifslab_experiments::runs::RunConfig;
+    use ifslab_strategies::optim::gd::GdConfig;
+    use ifslab_strategies::problems::flame::{BackgroundConfig, FlameLearnConfig, LayerSpec};
+    use ifslab_strategies::problems::image::StrategyConfig;
+    let cfg = match &a.config {
+        Some(path) => match RunConfig::load(path)? {
+            RunConfig::Flame(c) => *c,
+            other => bail!(
+                "{}: a `problem = \"{}\"` config; flame learn takes `problem = \"flame\"`",
+                path.display(),
+                other.problem()
+            ),
+        },
+        None => {
+            if a.flames == 0 {
+                bail!("--flames must be at least 1");
+            }
+            let per_layer = a.variations.len() == a.flames && a.flames > 1;
+            let mut cfg = FlameLearnConfig::new(&a.target, a.xforms, a.variations.clone());
+            cfg.flames = (0..a.flames)
+                .map(|i| LayerSpec {
+                    xforms: a.xforms,
+                    variations: if per_layer {
+                        vec![a.variations[i].clone()]
+                    } else {
+                        a.variations.clone()
+                    },
+                    linear: a.linear,
+                })
+                .collect();
+            cfg.sampler.size = a.size;
+            cfg.sampler.trajectories = a.trajectories;
+            cfg.eval_size = a.eval_size;
+            cfg.iterations = a.iters;
+            cfg.seed = a.seed;
+            cfg.background = BackgroundConfig::Named(a.background.clone());
+            cfg.strategy = StrategyConfig::new(&GdConfig {
+                lr: a.lr,
+                ..GdConfig::default()
+            });
+            cfg.validate()?;
+            cfg
+        }
+    };
+    let mut cfg = cfg;
+    cfg.output = Some(a.output.clone());
+    let run = RunConfig::Flame(Box::new(cfg));
+    let r = run.run(&a.output, a.resume, Box::new(Bar::for_problem("flame")))?;
+    println!("{}: {}", a.output.display(), r.headline);
+    Ok(())
 }
 
 /// `flame` with its size and quality overridden as the command line asks.

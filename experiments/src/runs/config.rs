@@ -1,17 +1,19 @@
 //! Any run `ifslab run` accepts: one TOML config whose top-level `problem` key says which
 //! problem it describes (`"image"` — the default, so older configs keep working —,
-//! `"points"`, `"texture"` or `"sdf"`), and
+//! `"points"`, `"texture"`, `"sdf"` or `"flame"`), and
 //! one call that turns it into a run folder. The command line, the sweeps and any other front
 //! end go through [`RunConfig::run`].
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
+use ifslab_strategies::problems::flame::FlameLearnConfig;
 use ifslab_strategies::problems::image::InversionConfig;
 use ifslab_strategies::problems::sdf::SdfConfig;
 use serde::Serialize;
 
 use crate::progress::Progress;
+use crate::runs::flame;
 use crate::runs::inversion;
 use crate::runs::points::{self, PointsConfig};
 use crate::runs::sdf;
@@ -34,6 +36,8 @@ pub enum RunConfig {
     Texture(Box<TextureConfig>),
     /// Image → segment pattern by the SDF raster (`problem = "sdf"`).
     Sdf(Box<SdfConfig>),
+    /// Image → colour fractal flame (`problem = "flame"`).
+    Flame(Box<FlameLearnConfig>),
 }
 
 /// What every run reports when it ends: a one-line headline for people and the
@@ -50,7 +54,7 @@ pub struct RunReport {
 
 impl RunConfig {
     /// The problems a config can name, in the order the help text lists them.
-    pub const PROBLEMS: &'static [&'static str] = &["image", "points", "texture", "sdf"];
+    pub const PROBLEMS: &'static [&'static str] = &["image", "points", "texture", "sdf", "flame"];
 
     /// A config from a parsed TOML table; `origin` (the file it came from) names it in
     /// errors and relative file names in it are read from its folder.
@@ -83,6 +87,10 @@ impl RunConfig {
                 let cfg = SdfConfig::from_toml(&text, origin)?.relative_to(dir);
                 Ok(RunConfig::Sdf(Box::new(cfg)))
             }
+            "flame" => {
+                let cfg = FlameLearnConfig::from_toml(&text, origin)?.relative_to(dir);
+                Ok(RunConfig::Flame(Box::new(cfg)))
+            }
             other => bail!(
                 "{}: unknown problem `{other}` (known: {})",
                 origin.display(),
@@ -113,6 +121,7 @@ impl RunConfig {
             RunConfig::Points(_) => "points",
             RunConfig::Texture(_) => "texture",
             RunConfig::Sdf(_) => "sdf",
+            RunConfig::Flame(_) => "flame",
         }
     }
 
@@ -125,6 +134,7 @@ impl RunConfig {
             RunConfig::Points(c) => toml::Table::try_from(c.resolved()?)?,
             RunConfig::Texture(c) => toml::Table::try_from(c.resolved()?)?,
             RunConfig::Sdf(c) => toml::Table::try_from(c.with_absolute_paths()?)?,
+            RunConfig::Flame(c) => toml::Table::try_from(c.with_absolute_paths()?)?,
         };
         let mut t = toml::Table::new();
         t.insert(PROBLEM_KEY.into(), self.problem().into());
@@ -139,6 +149,7 @@ impl RunConfig {
             RunConfig::Points(c) => c.output.as_deref(),
             RunConfig::Texture(c) => c.output.as_deref(),
             RunConfig::Sdf(c) => c.output.as_deref(),
+            RunConfig::Flame(c) => c.output.as_deref(),
         }
     }
 
@@ -189,6 +200,14 @@ impl RunConfig {
                     summary: serde_json::to_value(&s)?,
                 })
             }
+            RunConfig::Flame(cfg) => {
+                let s = flame::run(cfg, dir, resume, progress)?;
+                Ok(RunReport {
+                    problem: self.problem().into(),
+                    headline: s.headline(),
+                    summary: serde_json::to_value(&s)?,
+                })
+            }
         }
     }
 
@@ -225,6 +244,7 @@ mod tests {
             ("points_kitten.toml", "points"),
             ("texture_brick.toml", "texture"),
             ("sdf_koch.toml", "sdf"),
+            ("flame_circles3.toml", "flame"),
         ] {
             let c = RunConfig::load(&dir.join(name)).unwrap();
             assert_eq!(c.problem(), problem);

@@ -6,12 +6,15 @@
 //! - [`landscape`]: loss landscapes of an image-inversion run folder;
 //! - [`points`]: point cloud → IFS of similitudes by EM, single fits and pool sweeps, each
 //!   finished fit checkpointed;
+//! - [`flame`]: image → colour fractal flame by the differentiable flame pipeline
+//!   (learned `.flame` file, renders side by side with the target);
 //! - [`sdf`]: image → segment pattern by the differentiable SDF raster (fitted pattern,
 //!   render, loss plot, summary);
 //! - [`texture`]: fractal-coding texture upsampling, and the paper's tables and figures
 //!   ([`texture::repro`]).
 
 pub mod config;
+pub mod flame;
 pub mod inversion;
 pub mod landscape;
 pub mod points;

@@ -7,6 +7,8 @@
 //! - [`xform`]: a transform — pre-affine, weighted variations, post-affine, colour — with
 //!   its Jacobian and vector–Jacobian products;
 //! - [`genome`]: a whole flame with its camera and rendering settings;
+//! - [`learnable`]: the learnable flames of Bannister & Nowrouzezahrai — layers of
+//!   generators, final transform, quality blend and colours, their θ, and their export;
 //! - [`palette`]: 256-entry palettes and flam3's palette library;
 //! - [`format`]: `.flame` XML read and write;
 //! - [`random`]: random flames in flam3-genome's style, affine codes as flames, the
@@ -21,6 +23,7 @@
 
 pub mod format;
 pub mod genome;
+pub mod learnable;
 pub mod palette;
 pub mod random;
 pub mod real;

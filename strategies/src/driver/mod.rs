@@ -44,6 +44,14 @@ pub trait Differentiable {
 
     /// Brings θ back onto the parameterisation's canonical set after an update.
     fn project(&self, _theta: &mut [f64]) {}
+
+    /// Per-entry multipliers of a gradient strategy's learning rate at iteration `iter`
+    /// (`None`: all 1), for problems whose parameters live on different scales — a flame's
+    /// affine coefficients and its colour logits get one rate per group, as the
+    /// learnable-flames authors set, and a group can be held still for the first iterations.
+    fn rate_multipliers(&self, _iter: u64) -> Option<Vec<f64>> {
+        None
+    }
 }
 
 /// The key–value record of an evaluation, for argmin's observers.

@@ -2,9 +2,11 @@
 //! image → affine code by differentiable splatting ([`image`], any registered optimiser),
 //! point cloud → similitude IFS by EM ([`em`], its own loop), texture upsampling by fractal
 //! coding ([`fractal_coding`], a search, not an optimiser), image → segment pattern by the
-//! differentiable SDF raster ([`sdf`], any registered optimiser).
+//! differentiable SDF raster ([`sdf`], any registered optimiser), image → colour fractal
+//! flame by the differentiable flame pipeline ([`flame`], any registered optimiser).
 
 pub mod em;
+pub mod flame;
 pub mod fractal_coding;
 pub mod image;
 pub mod sdf;

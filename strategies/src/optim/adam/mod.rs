@@ -107,6 +107,27 @@ impl Adam {
 
     /// One update of θ along `grad` with the learning rate scaled by `lr_scale`.
     pub fn step_scaled(&mut self, theta: &mut [f64], grad: &[f64], lr_scale: f64) -> Result<()> {
+        self.step_with_rates(theta, grad, lr_scale, None)
+    }
+
+    /// One update with the learning rate scaled by `lr_scale` and, per entry, by `rates`
+    /// (see [`Differentiable::rate_multipliers`]).
+    pub fn step_with_rates(
+        &mut self,
+        theta: &mut [f64],
+        grad: &[f64],
+        lr_scale: f64,
+        rates: Option<&[f64]>,
+    ) -> Result<()> {
+        if let Some(r) = rates
+            && r.len() != theta.len()
+        {
+            return Err(Error::InvalidInput(format!(
+                "{} rate multipliers for {} parameters",
+                r.len(),
+                theta.len()
+            )));
+        }
         if grad.len() != theta.len() {
             return Err(Error::InvalidInput(format!(
                 "gradient has {} entries for {} parameters",
@@ -134,7 +155,8 @@ impl Adam {
             self.v[i] = c.beta2 * self.v[i] + (1.0 - c.beta2) * grad[i] * grad[i];
             let mh = self.m[i] / b1t;
             let vh = self.v[i] / b2t;
-            theta[i] -= lr_scale * c.lr * mh / (vh.sqrt() + c.eps);
+            let rate = rates.map_or(1.0, |r| r[i]);
+            theta[i] -= rate * lr_scale * c.lr * mh / (vh.sqrt() + c.eps);
         }
         Ok(())
     }
@@ -164,7 +186,11 @@ pub(crate) fn adam_iteration<O: Differentiable>(
     perturb(&mut eval.grad);
     let frac = iter as f64 / state.get_max_iters().max(1) as f64;
     let lr_scale = 1.0 - (1.0 - adam.config.final_lr_factor) * frac.min(1.0);
-    adam.step_scaled(&mut theta, &eval.grad, lr_scale)
+    let rates = problem
+        .problem
+        .as_ref()
+        .and_then(|p| p.rate_multipliers(iter));
+    adam.step_with_rates(&mut theta, &eval.grad, lr_scale, rates.as_deref())
         .map_err(to_argmin)?;
     problem.problem("project", |p| {
         p.project(&mut theta);

@@ -1,4 +1,5 @@
-//! Plain gradient descent, `θ ← θ − η_t·∇L`, with an optional momentum term and a linear
+//! Plain gradient descent, `θ ← θ − η_t·rᵢ·∇L` (`rᵢ` the problem's per-entry rate
+//! multipliers, 1 unless it sets them), with an optional momentum term and a linear
 //! learning-rate decay: the optimiser of the learnable-fractal-flames paper, and the
 //! smallest complete strategy in this crate — the worked example of adding one
 //! (`docs/ARCHITECTURE.md`): this file plus one line in [`crate::registry::strategies`].
@@ -102,9 +103,18 @@ impl<O: Differentiable> Solver<O, GradState> for GradientDescent {
         let frac = (iter as f64 / state.get_max_iters().max(1) as f64).min(1.0);
         let lr = c.lr * (1.0 - (1.0 - c.final_lr_factor) * frac);
         self.velocity.resize(theta.len(), 0.0);
-        for ((t, v), g) in theta.iter_mut().zip(&mut self.velocity).zip(&eval.grad) {
+        let rates = problem
+            .problem
+            .as_ref()
+            .and_then(|p| p.rate_multipliers(iter));
+        for (i, ((t, v), g)) in theta
+            .iter_mut()
+            .zip(&mut self.velocity)
+            .zip(&eval.grad)
+            .enumerate()
+        {
             *v = c.momentum * *v + g;
-            *t -= lr * *v;
+            *t -= lr * rates.as_ref().map_or(1.0, |r| r[i]) * *v;
         }
         problem.problem("project", |p| {
             p.project(&mut theta);

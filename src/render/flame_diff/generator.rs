@@ -1,0 +1,225 @@
+//! One generator of a learnable flame, ready for the hot loops: its forward map and its
+//! vector–Jacobian products with respect to the point and to its θ entries.
+//!
+//! The map is `s ↦ post(Σᵥ wᵥ·Vᵥ(A·s + t))` with flam3's variation formulas. The reverse
+//! pass evaluates every variation once in forward-mode dual numbers over `(tx, ty, w)` —
+//! the 2×2 Jacobian at the pre-affine point and the derivative in the weight — and applies
+//! the chain rule through the two affine maps by hand. A lone `linear` variation (the
+//! linear flames of the paper) skips the dual numbers altogether. Variations that read the
+//! pre-affine coefficients themselves (waves, popcorn, rings, fan) fall back to the
+//! transform's general [`Xform::vjp_params`].
+
+use crate::model::flame::learnable::Learn;
+use crate::model::flame::real::{Dual, Real};
+use crate::model::flame::variation::{MAX_DERIVED, MAX_PARAMS, VariationKind};
+use crate::model::flame::variations::{Pre, eval};
+use crate::model::flame::xform::{Coefs, Xform, affine};
+
+#[derive(Clone, Debug)]
+struct Var {
+    kind: VariationKind,
+    weight: f64,
+    params: [f64; MAX_PARAMS],
+    derived: [f64; MAX_DERIVED],
+}
+
+/// A generator prepared for sampling and differentiation.
+#[derive(Clone, Debug)]
+pub(crate) struct Generator {
+    coefs: Coefs,
+    post: Option<Coefs>,
+    /// `Some(w)` for a lone linear variation of weight `w`.
+    linear: Option<f64>,
+    radius: bool,
+    reads_coefs: bool,
+    vars: Vec<Var>,
+    learn: Learn,
+    xform: Xform,
+}
+
+/// The generator that never draws: deterministic variations only reach it.
+struct NoRng;
+
+impl rand::RngCore for NoRng {
+    fn next_u32(&mut self) -> u32 {
+        0
+    }
+    fn next_u64(&mut self) -> u64 {
+        0
+    }
+    fn fill_bytes(&mut self, dst: &mut [u8]) {
+        dst.fill(0);
+    }
+}
+
+impl Generator {
+    pub(crate) fn new(x: &Xform, learn: Learn) -> Self {
+        let vars: Vec<Var> = x
+            .variations
+            .iter()
+            .map(|v| Var {
+                kind: v.kind(),
+                weight: v.weight,
+                params: *v.param_array(),
+                derived: *v.derived(),
+            })
+            .collect();
+        let linear = match vars.as_slice() {
+            [v] if v.kind == VariationKind::Linear => Some(v.weight),
+            _ => None,
+        };
+        let post = if x.has_post() || learn.post {
+            Some(x.post)
+        } else {
+            None
+        };
+        Generator {
+            coefs: x.coefs,
+            post,
+            linear,
+            radius: vars.iter().any(|v| v.kind.uses_radius()),
+            reads_coefs: vars.iter().any(|v| v.kind.reads_coefs()),
+            vars,
+            learn,
+            xform: x.clone(),
+        }
+    }
+
+    /// `Σᵥ wᵥ·Vᵥ(t)` at the pre-affine point `t`.
+    #[inline(always)]
+    fn variations(&self, tx: f64, ty: f64) -> [f64; 2] {
+        if let Some(w) = self.linear {
+            return [w * tx, w * ty];
+        }
+        let f = if self.radius {
+            Pre::new(tx, ty)
+        } else {
+            Pre::without_radius(tx, ty)
+        };
+        let (mut x, mut y) = (0.0, 0.0);
+        for v in &self.vars {
+            let (dx, dy) = eval(
+                v.kind,
+                v.weight,
+                &v.params,
+                &v.derived,
+                &self.coefs,
+                &f,
+                &mut NoRng,
+            );
+            x += dx;
+            y += dy;
+        }
+        [x, y]
+    }
+
+    /// The generator applied to `s`.
+    #[inline(always)]
+    pub(crate) fn apply(&self, s: [f64; 2]) -> [f64; 2] {
+        let (tx, ty) = affine(&self.coefs, s[0], s[1]);
+        let v = self.variations(tx, ty);
+        match &self.post {
+            Some(p) => {
+                let (a, b) = affine(p, v[0], v[1]);
+                [a, b]
+            }
+            None => v,
+        }
+    }
+
+    /// Adds `(∂f/∂θ_g)(s)ᵀ·λ` to `grad` (the generator's θ entries, in
+    /// [`crate::model::flame::learnable`]'s order) and returns `(∂f/∂s)(s)ᵀ·λ`.
+    #[inline(always)]
+    pub(crate) fn vjp(&self, s: [f64; 2], lambda: [f64; 2], grad: &mut [f64]) -> [f64; 2] {
+        if self.reads_coefs {
+            return self.vjp_general(s, lambda, grad);
+        }
+        let c = &self.coefs;
+        let (tx, ty) = affine(c, s[0], s[1]);
+        // ρ = ∂L/∂v (v = Σ wᵥ Vᵥ(t)), through the post map's linear part.
+        let rho = match &self.post {
+            Some(p) => [
+                p[0] * lambda[0] + p[1] * lambda[1],
+                p[2] * lambda[0] + p[3] * lambda[1],
+            ],
+            None => lambda,
+        };
+        let mut k = 6;
+        let (mu, v) = if let Some(w) = self.linear {
+            if self.learn.weights {
+                grad[k] += rho[0] * tx + rho[1] * ty;
+                k += 1;
+            }
+            ([w * rho[0], w * rho[1]], [w * tx, w * ty])
+        } else {
+            let dx = Dual::<3>::var(tx, 0);
+            let dy = Dual::<3>::var(ty, 1);
+            let f = if self.radius {
+                Pre::new(dx, dy)
+            } else {
+                Pre::without_radius(dx, dy)
+            };
+            let cc = c.map(<Dual<3> as Real>::cst);
+            let mut mu = [0.0; 2];
+            let mut v = [0.0; 2];
+            for var in &self.vars {
+                let w = Dual::<3>::var(var.weight, 2);
+                let p = var.params.map(<Dual<3> as Real>::cst);
+                let d = var.derived.map(<Dual<3> as Real>::cst);
+                let (ox, oy) = eval(var.kind, w, &p, &d, &cc, &f, &mut NoRng);
+                v[0] += ox.v;
+                v[1] += oy.v;
+                mu[0] += rho[0] * ox.d[0] + rho[1] * oy.d[0];
+                mu[1] += rho[0] * ox.d[1] + rho[1] * oy.d[1];
+                if self.learn.weights {
+                    grad[k] += rho[0] * ox.d[2] + rho[1] * oy.d[2];
+                    k += 1;
+                }
+            }
+            (mu, v)
+        };
+        // Pre-affine: t = (a·x + c·y + e, b·x + d·y + f).
+        grad[0] += mu[0] * s[0];
+        grad[1] += mu[1] * s[0];
+        grad[2] += mu[0] * s[1];
+        grad[3] += mu[1] * s[1];
+        grad[4] += mu[0];
+        grad[5] += mu[1];
+        if self.learn.post {
+            grad[k] += lambda[0] * v[0];
+            grad[k + 1] += lambda[1] * v[0];
+            grad[k + 2] += lambda[0] * v[1];
+            grad[k + 3] += lambda[1] * v[1];
+            grad[k + 4] += lambda[0];
+            grad[k + 5] += lambda[1];
+        }
+        [c[0] * mu[0] + c[1] * mu[1], c[2] * mu[0] + c[3] * mu[1]]
+    }
+
+    /// The general path for variations that read the pre-affine coefficients.
+    fn vjp_general(&self, s: [f64; 2], lambda: [f64; 2], grad: &mut [f64]) -> [f64; 2] {
+        let x = &self.xform;
+        let mut full = vec![0.0; x.n_params()];
+        x.vjp_params(s, lambda, &mut full)
+            .expect("learnable generators are deterministic");
+        for i in 0..6 {
+            grad[i] += full[i];
+        }
+        let mut k = 6;
+        let mut src = 6;
+        for v in &x.variations {
+            if self.learn.weights {
+                grad[k] += full[src];
+                k += 1;
+            }
+            src += 1 + v.kind().params().len();
+        }
+        if self.learn.post {
+            for i in 0..6 {
+                grad[k + i] += full[src + i];
+            }
+        }
+        x.vjp_point(s, lambda)
+            .expect("learnable generators are deterministic")
+    }
+}

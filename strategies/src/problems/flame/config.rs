@@ -1,0 +1,324 @@
+//! The configuration of a flame fit (`problem = "flame"` in `ifslab run`, or `ifslab flame
+//! learn`'s flags), validated before anything runs and written beside the results.
+
+use std::path::{Path, PathBuf};
+
+use ifslab::model::flame::VariationKind;
+use ifslab::model::flame::learnable::{Learn, LearnableInit};
+use ifslab::render::flame_diff::DiffFlameConfig;
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::optim::gd::GdConfig;
+use crate::problems::image::config::StrategyConfig;
+
+/// One layer: `xforms` generators; the first `linear` of them are pre-affine maps only, the
+/// others apply every variation of `variations` (weight 1 each) after their pre-affine map.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LayerSpec {
+    /// Generators.
+    pub xforms: usize,
+    /// flam3 variation names (deterministic ones).
+    pub variations: Vec<String>,
+    /// How many leading generators are linear only (the authors' Fighting Forms: 13 of 24).
+    #[serde(default)]
+    pub linear: usize,
+}
+
+impl LayerSpec {
+    /// The variations of every generator; an error names an unknown or random variation.
+    pub fn generators(&self) -> Result<Vec<Vec<VariationKind>>> {
+        let mut kinds = Vec::with_capacity(self.variations.len());
+        for name in &self.variations {
+            let k = VariationKind::from_name(name).ok_or_else(|| {
+                Error::param(
+                    "variations",
+                    format!("unknown variation `{name}` (flam3 3.1.1 names, e.g. spherical, handkerchief)"),
+                )
+            })?;
+            if k.is_random() {
+                return Err(Error::param(
+                    "variations",
+                    format!(
+                        "`{name}` draws random numbers and has no derivative; learnable flames take deterministic variations only"
+                    ),
+                ));
+            }
+            kinds.push(k);
+        }
+        if kinds.is_empty() {
+            kinds.push(VariationKind::Linear);
+        }
+        Ok((0..self.xforms)
+            .map(|i| {
+                if i < self.linear {
+                    vec![VariationKind::Linear]
+                } else {
+                    kinds.clone()
+                }
+            })
+            .collect())
+    }
+}
+
+/// The compositor's background: `"white"`, `"black"`, `"learned"` or `[r, g, b]`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum BackgroundConfig {
+    /// A name.
+    Named(String),
+    /// A fixed colour, components in [0, 1].
+    Rgb([f64; 3]),
+}
+
+impl Default for BackgroundConfig {
+    fn default() -> Self {
+        BackgroundConfig::Named("white".into())
+    }
+}
+
+/// Learning rates per parameter group, as multiples of the strategy's `lr` (the authors set
+/// one rate per module: sampler, splatter, palette, compositor).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Rates {
+    /// Generators (pre- and post-affine maps, variation weights).
+    pub generators: f64,
+    /// The final transform.
+    pub final_transform: f64,
+    /// κ's raw parameter.
+    pub kappa: f64,
+    /// The colour logits.
+    pub color: f64,
+    /// The background logits.
+    pub background: f64,
+    /// Iterations at the start during which the generators, final transform and κ stay put
+    /// and only colours and background learn (the authors' painting runs: 100).
+    pub freeze_geometry: u64,
+}
+
+impl Default for Rates {
+    /// The authors' linear flame on circles3: sampler 0.1, splatter 0.01 (κ 0.05), palette
+    /// 100, compositor 1 — relative to the sampler's 0.1.
+    fn default() -> Self {
+        Rates {
+            generators: 1.0,
+            final_transform: 0.1,
+            kappa: 0.5,
+            color: 1000.0,
+            background: 10.0,
+            freeze_geometry: 0,
+        }
+    }
+}
+
+/// A whole fit.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FlameLearnConfig {
+    /// The target image, RGB (relative to the config file's folder).
+    pub target: PathBuf,
+    /// The layers, bottom first.
+    pub flames: Vec<LayerSpec>,
+    /// Sampling and image size (the image is `size × size`; the target is resized to it).
+    #[serde(default)]
+    pub sampler: DiffFlameConfig,
+    /// The background.
+    #[serde(default)]
+    pub background: BackgroundConfig,
+    /// What is learned besides the pre-affine maps, final transform, κ and colours.
+    #[serde(default)]
+    pub learn: Learn,
+    /// The start.
+    #[serde(default)]
+    pub init: LearnableInit,
+    /// Per-group learning-rate multipliers.
+    #[serde(default)]
+    pub rates: Rates,
+    /// Redraw the generator order every this many iterations (0: drawn once, as the paper).
+    #[serde(default)]
+    pub redraw_every: u64,
+    /// Optimisation iterations.
+    #[serde(default = "default_iterations")]
+    pub iterations: u64,
+    /// Seed of the start and of the generator order.
+    #[serde(default)]
+    pub seed: u64,
+    /// Write a checkpoint every this many iterations (0: never).
+    #[serde(default = "default_checkpoint_every")]
+    pub checkpoint_every: u64,
+    /// Side of the final render, written beside the training-size one (0: none).
+    #[serde(default = "default_eval_size")]
+    pub eval_size: usize,
+    /// Output folder (the command line's `-o` wins).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub output: Option<PathBuf>,
+    /// The strategy (any registered one; gradient descent with lr 0.1 by default).
+    #[serde(default = "default_strategy")]
+    pub strategy: StrategyConfig,
+}
+
+fn default_iterations() -> u64 {
+    150
+}
+fn default_checkpoint_every() -> u64 {
+    25
+}
+fn default_eval_size() -> usize {
+    400
+}
+/// Plain gradient descent at the authors' sampler rate.
+pub fn default_strategy() -> StrategyConfig {
+    StrategyConfig::new(&GdConfig {
+        lr: 0.1,
+        ..GdConfig::default()
+    })
+}
+
+impl FlameLearnConfig {
+    /// A config with every default: one layer of `xforms` generators with `variations`.
+    pub fn new(target: impl Into<PathBuf>, xforms: usize, variations: Vec<String>) -> Self {
+        FlameLearnConfig {
+            target: target.into(),
+            flames: vec![LayerSpec {
+                xforms,
+                variations,
+                linear: 0,
+            }],
+            sampler: DiffFlameConfig::default(),
+            background: BackgroundConfig::default(),
+            learn: Learn::default(),
+            init: LearnableInit::default(),
+            rates: Rates::default(),
+            redraw_every: 0,
+            iterations: default_iterations(),
+            seed: 0,
+            checkpoint_every: default_checkpoint_every(),
+            eval_size: default_eval_size(),
+            output: None,
+            strategy: default_strategy(),
+        }
+    }
+
+    /// Parses and validates TOML text; `origin` names it in errors.
+    pub fn from_toml(text: &str, origin: &Path) -> Result<Self> {
+        let cfg: FlameLearnConfig = toml::from_str(text).map_err(|e| Error::file(origin, e))?;
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    /// Relative file names read as relative to `dir`.
+    pub fn relative_to(mut self, dir: &Path) -> Self {
+        if self.target.is_relative() {
+            self.target = dir.join(&self.target);
+        }
+        self
+    }
+
+    /// Every file named absolutely (against the working directory).
+    pub fn with_absolute_paths(&self) -> Result<Self> {
+        let abs = |p: &Path| std::path::absolute(p).map_err(|e| Error::file(p, e));
+        let mut cfg = self.clone();
+        cfg.target = abs(&self.target)?;
+        if let Some(out) = &self.output {
+            cfg.output = Some(abs(out)?);
+        }
+        Ok(cfg)
+    }
+
+    /// The background as the model holds it.
+    pub fn background(&self) -> Result<ifslab::model::flame::learnable::Background> {
+        use ifslab::model::flame::learnable::Background;
+        Ok(match &self.background {
+            BackgroundConfig::Rgb(c) => {
+                if c.iter().any(|v| !(0.0..=1.0).contains(v)) {
+                    return Err(Error::param(
+                        "background",
+                        format!("components lie in [0, 1], got {c:?}"),
+                    ));
+                }
+                Background::Fixed(*c)
+            }
+            BackgroundConfig::Named(n) => match n.as_str() {
+                "white" => Background::Fixed([1.0; 3]),
+                "black" => Background::Fixed([0.0; 3]),
+                "learned" => Background::Learned([0.0; 3]),
+                other => {
+                    return Err(Error::param(
+                        "background",
+                        format!("`{other}`: use white, black, learned or [r, g, b]"),
+                    ));
+                }
+            },
+        })
+    }
+
+    /// Checks every field; errors name the field.
+    pub fn validate(&self) -> Result<()> {
+        if self.iterations == 0 {
+            return Err(Error::param("iterations", "must be at least 1"));
+        }
+        self.sampler.validate()?;
+        if self.sampler.size < 4 {
+            return Err(Error::param(
+                "sampler.size",
+                format!("at least 4 pixels, got {}", self.sampler.size),
+            ));
+        }
+        if self.flames.is_empty() {
+            return Err(Error::param("flames", "give at least one flame layer"));
+        }
+        for (i, l) in self.flames.iter().enumerate() {
+            if !(1..=255).contains(&l.xforms) {
+                return Err(Error::param(
+                    "flames.xforms",
+                    format!("flame {i}: between 1 and 255 generators, got {}", l.xforms),
+                ));
+            }
+            if l.linear > l.xforms {
+                return Err(Error::param(
+                    "flames.linear",
+                    format!("flame {i}: {} linear generators of {}", l.linear, l.xforms),
+                ));
+            }
+            l.generators()?;
+        }
+        self.background()?;
+        let r = &self.rates;
+        for (name, v) in [
+            ("rates.generators", r.generators),
+            ("rates.final_transform", r.final_transform),
+            ("rates.kappa", r.kappa),
+            ("rates.color", r.color),
+            ("rates.background", r.background),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::param(
+                    name,
+                    format!("must be finite and ≥ 0, got {v}"),
+                ));
+            }
+        }
+        for (name, v) in [
+            ("init.translation", self.init.translation),
+            ("init.scale", self.init.scale),
+            ("init.final_translation", self.init.final_translation),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::param(
+                    name,
+                    format!("must be finite and ≥ 0, got {v}"),
+                ));
+            }
+        }
+        if self.eval_size > 8192 {
+            return Err(Error::param(
+                "eval_size",
+                format!("at most 8192, got {}", self.eval_size),
+            ));
+        }
+        self.strategy.validate()?;
+        Ok(())
+    }
+}

@@ -1,0 +1,169 @@
+//! The fit: θ → flame stack → differentiable flame pipeline → the authors' MSE against the
+//! RGB target → gradient, all in f64 with the pipeline's hand-written reverse pass.
+
+use std::sync::{Arc, Mutex};
+
+use ifslab::model::flame::learnable::{Background, FlameStack};
+use ifslab::render::flame_diff::{
+    DiffFlameConfig, FlameFrame, GeneratorOrder, backward, forward, mse,
+};
+
+use crate::driver::{Differentiable, Evaluation};
+use crate::error::{Error, Result};
+use crate::optim::annealing::Anneal;
+use crate::problems::flame::config::Rates;
+
+/// Names of the logged loss terms, in column order.
+pub const FLAME_TERMS: [&str; 1] = ["mse"];
+
+/// Fit a flame stack to an RGB target.
+#[derive(Debug)]
+pub struct FlameProblem {
+    stack: FlameStack,
+    cfg: DiffFlameConfig,
+    /// Three planes, `size × size`, row 0 at the top.
+    target: Vec<f32>,
+    seed: u64,
+    redraw_every: u64,
+    rates: Vec<f64>,
+    /// Which θ entries the authors' sampler and splatter hold (generators, final
+    /// transform, κ).
+    geometry: Vec<bool>,
+    freeze_geometry: u64,
+    order: Mutex<Option<(u64, Arc<GeneratorOrder>)>>,
+}
+
+impl FlameProblem {
+    /// The problem of fitting stacks shaped like `stack` to `target` (three planes of
+    /// `cfg.size²` values in [0, 1]).
+    pub fn new(
+        stack: FlameStack,
+        cfg: DiffFlameConfig,
+        target: Vec<f32>,
+        seed: u64,
+        redraw_every: u64,
+        rates: &Rates,
+    ) -> Result<Self> {
+        cfg.validate()?;
+        stack.validate()?;
+        if target.len() != 3 * cfg.size * cfg.size {
+            return Err(Error::InvalidInput(format!(
+                "an RGB target of {} values for a {}² image",
+                target.len(),
+                cfg.size
+            )));
+        }
+        let mut r = Vec::with_capacity(stack.n_params());
+        let mut geometry = Vec::with_capacity(stack.n_params());
+        for l in &stack.layers {
+            let lay = l.layout();
+            r.extend(std::iter::repeat_n(rates.generators, lay.final_at));
+            r.extend(std::iter::repeat_n(rates.final_transform, 6));
+            r.push(rates.kappa);
+            // The authors' splatter holds the final transform and κ: both wait with the
+            // sampler.
+            geometry.extend(std::iter::repeat_n(true, lay.final_at + 7));
+            r.extend(std::iter::repeat_n(rates.color, 4 * l.len()));
+            geometry.extend(std::iter::repeat_n(false, 4 * l.len()));
+        }
+        if let Background::Learned(_) = stack.background {
+            r.extend([rates.background; 3]);
+            geometry.extend([false; 3]);
+        }
+        Ok(FlameProblem {
+            stack,
+            cfg,
+            target,
+            seed,
+            redraw_every,
+            rates: r,
+            geometry,
+            freeze_geometry: rates.freeze_geometry,
+            order: Mutex::new(None),
+        })
+    }
+
+    /// The stack at θ.
+    pub fn stack_at(&self, theta: &[f64]) -> Result<FlameStack> {
+        let mut s = self.stack.clone();
+        s.set_params(theta)?;
+        Ok(s)
+    }
+
+    /// The pipeline's settings.
+    pub fn config(&self) -> &DiffFlameConfig {
+        &self.cfg
+    }
+
+    /// The target.
+    pub fn target(&self) -> &[f32] {
+        &self.target
+    }
+
+    /// The generator order used at iteration `iter`.
+    pub fn order_at(&self, iter: u64) -> Arc<GeneratorOrder> {
+        let epoch = iter.checked_div(self.redraw_every).unwrap_or(0);
+        let mut slot = self.order.lock().expect("order cache");
+        if let Some((e, o)) = slot.as_ref()
+            && *e == epoch
+        {
+            return o.clone();
+        }
+        let o = Arc::new(GeneratorOrder::draw(
+            &self.stack,
+            &self.cfg,
+            self.seed
+                .wrapping_add(epoch.wrapping_mul(0x2545_f491_4f6c_dd1d)),
+        ));
+        *slot = Some((epoch, o.clone()));
+        o
+    }
+
+    /// The render at θ with the order of iteration `iter`.
+    pub fn render(&self, theta: &[f64], iter: u64) -> Result<FlameFrame> {
+        let stack = self.stack_at(theta)?;
+        Ok(forward(&stack, &self.cfg, &self.order_at(iter))?)
+    }
+
+    /// The MSE at θ with the order of iteration `iter`.
+    pub fn loss(&self, theta: &[f64], iter: u64) -> Result<f64> {
+        let f = self.render(theta, iter)?;
+        Ok(mse(&f.image, &self.target)?.0)
+    }
+}
+
+impl Differentiable for FlameProblem {
+    fn evaluate(&self, theta: &[f64], iter: u64) -> Result<Evaluation> {
+        let stack = self.stack_at(theta)?;
+        let order = self.order_at(iter);
+        let frame = forward(&stack, &self.cfg, &order)?;
+        let (loss, g) = mse(&frame.image, &self.target)?;
+        let grad = backward(&stack, &self.cfg, &order, &frame, &g)?;
+        Ok(Evaluation {
+            loss,
+            grad,
+            terms: vec![("mse", loss)],
+        })
+    }
+
+    fn rate_multipliers(&self, iter: u64) -> Option<Vec<f64>> {
+        if iter < self.freeze_geometry {
+            Some(
+                self.rates
+                    .iter()
+                    .zip(&self.geometry)
+                    .map(|(&r, &g)| if g { 0.0 } else { r })
+                    .collect(),
+            )
+        } else {
+            Some(self.rates.clone())
+        }
+    }
+}
+
+impl Anneal for FlameProblem {
+    /// The MSE with the generator order of the run's start (a fixed random stream).
+    fn anneal_cost(&self, theta: &[f64], _stream: u64, _frac: f64) -> Result<f64> {
+        self.loss(theta, 0)
+    }
+}

@@ -1,0 +1,218 @@
+//! Running a flame fit: the target, the start, solver from the registry, argmin `Executor`
+//! with the shared checkpoint and CSV log, resume.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use argmin::core::State;
+use argmin::core::observers::Observe;
+use ifslab::model::flame::learnable::{FlameStack, LearnableFlame};
+
+use crate::driver::{CsvLog, GradState, JsonCheckpoint, RunSpec, execute};
+use crate::error::{Error, Result};
+use crate::problems::flame::config::FlameLearnConfig;
+use crate::problems::flame::problem::{FLAME_TERMS, FlameProblem};
+use crate::problems::image::run::{CHECKPOINT_FILE, LOG_FILE, START_FILE, ensure_new_run_dir};
+use crate::registry;
+
+/// What a fit produced.
+#[derive(Clone, Debug)]
+pub struct FlameOutcome {
+    /// θ returned: the last iterate, or the start when the start scores lower.
+    pub theta: Vec<f64>,
+    /// Which of the two (`last`, `start`).
+    pub returned: &'static str,
+    /// The start.
+    pub start: Vec<f64>,
+    /// MSE of the start.
+    pub start_loss: f64,
+    /// Iterations completed (including those before a resume).
+    pub iterations: u64,
+    /// MSE of the returned θ (generator order of the last iteration).
+    pub loss: f64,
+    /// Wall-clock seconds of this process's part of the run.
+    pub seconds: f64,
+    /// The CSV log.
+    pub log: PathBuf,
+}
+
+/// An RGB target of `size × size` pixels (three planes, row 0 at the top), resized from any
+/// image the `image` crate reads (stretched to a square, as the authors' code does), and a
+/// note on what was done to it: a grey image is used as RGB with equal channels; an image
+/// with transparency is composited over `background` (the fit's background colour).
+pub fn load_rgb_target(
+    path: &Path,
+    size: usize,
+    background: [f64; 3],
+) -> Result<(Vec<f32>, Option<String>)> {
+    let bytes = std::fs::read(path).map_err(|e| Error::file(path, e))?;
+    let img = image::load_from_memory(&bytes)
+        .map_err(|e| Error::file(path, format!("not a readable image ({e})")))?;
+    let colour = img.color();
+    let mut notes = Vec::new();
+    if !colour.has_color() {
+        notes.push("the target is greyscale: learned as RGB with three equal channels");
+    }
+    if colour.has_alpha() {
+        notes.push("the target has an alpha channel: composited over the background colour");
+    }
+    let rgba = img.to_rgba32f();
+    let (w, h) = rgba.dimensions();
+    if w == 0 || h == 0 {
+        return Err(Error::file(path, "image has no pixels"));
+    }
+    let resized = image::imageops::resize(
+        &rgba,
+        size as u32,
+        size as u32,
+        image::imageops::FilterType::Triangle,
+    );
+    let n = size * size;
+    let mut out = vec![0.0f32; 3 * n];
+    for (i, p) in resized.pixels().enumerate() {
+        let a = p.0[3].clamp(0.0, 1.0);
+        for ch in 0..3 {
+            let v = p.0[ch] * a + background[ch] as f32 * (1.0 - a);
+            out[ch * n + i] = v.clamp(0.0, 1.0);
+        }
+    }
+    let note = if notes.is_empty() {
+        None
+    } else {
+        Some(notes.join("; "))
+    };
+    Ok((out, note))
+}
+
+/// The start `cfg` describes: each layer drawn in the authors' style from the run's seed.
+pub fn initial_stack(cfg: &FlameLearnConfig) -> Result<FlameStack> {
+    let layers = cfg
+        .flames
+        .iter()
+        .enumerate()
+        .map(|(i, spec)| {
+            LearnableFlame::random(
+                &spec.generators()?,
+                cfg.learn,
+                &cfg.init,
+                cfg.seed.wrapping_add(1 + i as u64),
+            )
+            .map_err(Error::from)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let stack = FlameStack {
+        layers,
+        background: cfg.background()?,
+    };
+    stack.validate()?;
+    Ok(stack)
+}
+
+/// The problem `cfg` describes for `target`.
+pub fn flame_problem(cfg: &FlameLearnConfig, target: Vec<f32>) -> Result<FlameProblem> {
+    FlameProblem::new(
+        initial_stack(cfg)?,
+        cfg.sampler.clone(),
+        target,
+        cfg.seed,
+        cfg.redraw_every,
+        &cfg.rates,
+    )
+}
+
+/// Runs the fit `cfg` describes against `target` (three planes of `size²`), writing
+/// `start.json`, `checkpoint.json` and `log.csv` into `dir`. With `resume`, continues from
+/// the checkpoint there; every step is deterministic, so the result is bit-identical to an
+/// uninterrupted run.
+pub fn run_flame(
+    cfg: &FlameLearnConfig,
+    target: Vec<f32>,
+    dir: &Path,
+    resume: bool,
+    observers: Vec<Box<dyn Observe<GradState> + Send>>,
+) -> Result<FlameOutcome> {
+    cfg.validate()?;
+    std::fs::create_dir_all(dir).map_err(|e| Error::file(dir, e))?;
+    if !resume {
+        ensure_new_run_dir(dir)?;
+    }
+    let ckpt_path = dir.join(CHECKPOINT_FILE);
+    let resume_from = if resume {
+        let bytes = std::fs::read(&ckpt_path)
+            .map_err(|e| Error::file(&ckpt_path, format!("cannot resume: {e}")))?;
+        let v: serde_json::Value = serde_json::from_slice(&bytes)
+            .map_err(|e| Error::file(&ckpt_path, format!("checkpoint is corrupt: {e}")))?;
+        Some(
+            v["state"]["iter"]
+                .as_u64()
+                .ok_or_else(|| Error::file(&ckpt_path, "checkpoint has no iteration count"))?,
+        )
+    } else {
+        None
+    };
+    let problem = flame_problem(cfg, target)?;
+    let start_path = dir.join(START_FILE);
+    let start = if resume_from.is_some() {
+        let b = std::fs::read(&start_path).map_err(|e| Error::file(&start_path, e))?;
+        serde_json::from_slice::<Vec<f64>>(&b).map_err(|e| Error::file(&start_path, e))?
+    } else {
+        let t = initial_stack(cfg)?.params();
+        ifslab::io::write_atomic(
+            &start_path,
+            serde_json::to_string(&t)
+                .map_err(|e| Error::Numerical(format!("start θ: {e}")))?
+                .as_bytes(),
+        )?;
+        t
+    };
+    let stats = registry::stats(cfg.strategy.name())?;
+    let columns: Vec<&str> = FLAME_TERMS.iter().chain(stats).copied().collect();
+    let log = CsvLog::open(dir.join(LOG_FILE), &columns, resume_from)?;
+    let ckpt = JsonCheckpoint::new(&ckpt_path, cfg.checkpoint_every, resume, cfg.iterations);
+    let clock = Instant::now();
+    let entry = registry::find::<FlameProblem>(cfg.strategy.name())?;
+    let solver = entry.build(
+        cfg.strategy.params(),
+        &RunSpec {
+            iterations: cfg.iterations,
+            seed: cfg.seed,
+        },
+    )?;
+    let theta0 = if resume_from.is_some() {
+        Vec::new()
+    } else {
+        start.clone()
+    };
+    let (problem, state) = execute(
+        problem,
+        solver,
+        theta0,
+        cfg.iterations,
+        ckpt,
+        log,
+        observers,
+    )?;
+    let seconds = clock.elapsed().as_secs_f64();
+    let last = state
+        .get_param()
+        .cloned()
+        .ok_or_else(|| Error::Numerical("the run ended without parameters".into()))?;
+    let at = state.get_iter();
+    let last_loss = problem.loss(&last, at).unwrap_or(f64::INFINITY);
+    let start_loss = problem.loss(&start, at)?;
+    let (theta, returned, loss) = if last_loss <= start_loss {
+        (last, "last", last_loss)
+    } else {
+        (start.clone(), "start", start_loss)
+    };
+    Ok(FlameOutcome {
+        theta,
+        returned,
+        start,
+        start_loss,
+        iterations: at,
+        loss,
+        seconds,
+        log: dir.join(LOG_FILE),
+    })
+}
