@@ -284,3 +284,52 @@ fn the_learned_flame_renders_in_flam3_where_ours_draws() {
         "foreground IoU of flam3's render and ours: {iou}"
     );
 }
+
+/// The strategies that are not gradient descent run on flames too: Adam's hybrid with
+/// annealing phases (value-only Metropolis steps on the start's generator order) and pure
+/// annealing, each lowering the MSE of the random start.
+#[test]
+fn hybrid_and_annealing_strategies_run_on_flames() {
+    use ifslab_strategies::optim::annealing::AnnealingConfig;
+    use ifslab_strategies::optim::hybrid::HybridConfig;
+    let dir = tempfile::tempdir().unwrap();
+    let target = sierpinski_target(dir.path(), 24);
+    let (t, _) = load_rgb_target(&target, 24, [1.0; 3]).unwrap();
+    for (name, strategy) in [
+        (
+            "hybrid",
+            StrategyConfig::new(&HybridConfig {
+                adam: AdamConfig {
+                    lr: 0.02,
+                    ..AdamConfig::default()
+                },
+                anneal_every: 10,
+                anneal_fraction: 0.5,
+                ..HybridConfig::default()
+            }),
+        ),
+        (
+            "annealing",
+            StrategyConfig::new(&AnnealingConfig {
+                noise: 0.05,
+                ..AnnealingConfig::default()
+            }),
+        ),
+    ] {
+        let mut cfg = config(&target, 30);
+        cfg.sampler = DiffFlameConfig {
+            trajectories: 60,
+            steps: 200,
+            ..sampler(24)
+        };
+        cfg.strategy = strategy;
+        let out = run_flame(&cfg, t.clone(), &dir.path().join(name), false, vec![]).unwrap();
+        assert_eq!(out.iterations, 30, "{name}");
+        assert!(
+            out.loss.is_finite() && out.loss < out.start_loss,
+            "{name}: MSE {} from {}",
+            out.loss,
+            out.start_loss
+        );
+    }
+}

@@ -173,6 +173,11 @@ pub struct RenderArgs {
     /// Keep transparency (alpha channel) instead of compositing onto the background.
     #[arg(long)]
     pub alpha: bool,
+    /// Composite every flame of the file into one picture, first at the bottom, each drawn
+    /// with transparency and laid "over" the first flame's background (a learned flame
+    /// stack's layers, as `ifslab flame learn` writes them).
+    #[arg(long, conflicts_with = "alpha")]
+    pub composite: bool,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -293,12 +298,14 @@ fn render(a: RenderArgs) -> anyhow::Result<()> {
         }
         None => flames.into_iter().enumerate().collect(),
     };
-    let several = chosen.len() > 1;
+    let several = chosen.len() > 1 && !a.composite;
     let cfg = FlameRenderConfig {
         seed: a.seed,
-        transparent: a.alpha,
+        transparent: a.alpha || a.composite,
         ..FlameRenderConfig::default()
     };
+    // The composite: RGB in 0–255 over the first flame's background.
+    let mut composite: Option<(u32, u32, Vec<[f32; 3]>)> = None;
     for (i, mut flame) in chosen {
         apply_overrides(&mut flame, a.size.as_deref(), a.quality, a.supersample)?;
         let out = output_for(&a.output, i, several);
@@ -311,7 +318,28 @@ fn render(a: RenderArgs) -> anyhow::Result<()> {
         } else {
             Depth::Eight
         };
-        img.save_png(&out, depth, a.alpha)?;
+        if a.composite {
+            let bg = flame.background.map(|v| (v * 255.0) as f32);
+            let (w, h, acc) = composite
+                .get_or_insert_with(|| (img.width, img.height, vec![bg; img.pixels.len()]));
+            if (*w, *h) != (img.width, img.height) {
+                bail!(
+                    "{}: flames of different sizes ({}×{} and {}×{}) cannot be composited",
+                    a.file.display(),
+                    w,
+                    h,
+                    img.width,
+                    img.height
+                );
+            }
+            for (d, p) in acc.iter_mut().zip(&img.pixels) {
+                for c in 0..3 {
+                    d[c] = p[c] * p[3] + d[c] * (1.0 - p[3]);
+                }
+            }
+        } else {
+            img.save_png(&out, depth, a.alpha)?;
+        }
         let s = &img.stats;
         let bad = s.badvals as f64 / s.samples.max(1) as f64;
         eprintln!(
@@ -332,6 +360,17 @@ fn render(a: RenderArgs) -> anyhow::Result<()> {
                 100.0 * bad
             );
         }
+    }
+    if let Some((w, h, acc)) = composite {
+        let n = acc.len();
+        let mut planes = vec![0f32; 3 * n];
+        for (i, p) in acc.iter().enumerate() {
+            for c in 0..3 {
+                planes[c * n + i] = (p[c] / 255.0).clamp(0.0, 1.0);
+            }
+        }
+        ifslab::image::Image::new(w, h, 3, planes)?.save_png(&a.output)?;
+        eprintln!("composite → {}", a.output.display());
     }
     Ok(())
 }

@@ -108,12 +108,7 @@ pub fn run(
     let t64: Vec<f64> = target.iter().map(|&v| v as f64).collect();
     save_rgb(&dir.join("target.png"), &t64, size)?;
     let done_before = if resume {
-        let ckpt = dir.join(ifslab_strategies::problems::image::run::CHECKPOINT_FILE);
-        let text = std::fs::read_to_string(&ckpt)
-            .with_context(|| format!("cannot resume: reading {}", ckpt.display()))?;
-        let v: serde_json::Value = serde_json::from_str(&text)
-            .with_context(|| format!("{} is corrupt", ckpt.display()))?;
-        v["state"]["iter"].as_u64().unwrap_or(0)
+        ifslab_strategies::driver::checkpoint_iteration(dir)?
     } else {
         0
     };

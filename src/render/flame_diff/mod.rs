@@ -621,6 +621,16 @@ fn backward_layer(
     grad
 }
 
+/// One step of a trajectory's tape: the state, the quality sums, whether it restarted.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(align(64))]
+struct Step {
+    s: [f64; 2],
+    c: [f64; 4],
+    w: f64,
+    reset: bool,
+}
+
 /// [`backward_chunk`] compiled with AVX2 and FMA (no contraction: the same bits).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma,bmi1,bmi2")]
@@ -661,10 +671,8 @@ fn backward_chunk(
     let ranges: Vec<(usize, usize)> = (0..p.gens.len())
         .map(|g| (p.offsets[g], p.offsets[g] + layer.generator_params(g)))
         .collect();
-    let mut states = vec![[0.0f64; 2]; steps];
-    let mut reset = vec![false; steps];
-    let mut cs = vec![[0.0f64; 4]; steps];
-    let mut ws = vec![0.0f64; steps];
+    // The trajectory's tape, one cache line per step.
+    let mut tape = vec![Step::default(); steps];
     let mut kappa_bar = 0.0;
     for t in t0..t1 {
         let g = &order[t * steps..(t + 1) * steps];
@@ -672,14 +680,12 @@ fn backward_chunk(
         let mut s = [0.0f64; 2];
         let mut c = [0.0f64; 4];
         let mut w = 0.0f64;
-        states[0] = s;
-        cs[0] = c;
-        ws[0] = w;
+        tape[0] = Step::default();
         for j in 1..steps {
             let gi = g[j] as usize;
             s = p.gens[gi].apply(s);
-            reset[j] = is_bad_value(s[0]) || is_bad_value(s[1]);
-            if reset[j] {
+            let bad = is_bad_value(s[0]) || is_bad_value(s[1]);
+            if bad {
                 s = [0.0, 0.0];
             }
             let col = &p.colors[gi];
@@ -687,16 +693,22 @@ fn backward_chunk(
                 c[k] = col[k] + c[k] * inv_k;
             }
             w = 1.0 + w * inv_k;
-            states[j] = s;
-            cs[j] = c;
-            ws[j] = w;
+            tape[j] = Step {
+                s,
+                c,
+                w,
+                reset: bad,
+            };
         }
         // Backward scan.
         let mut lam = [0.0f64; 2];
         let mut lam_c = [0.0f64; 4];
         let mut lam_w = 0.0f64;
         for j in (1..steps).rev() {
-            let s = states[j];
+            let (prev, cur) = tape.split_at(j);
+            let step = &cur[0];
+            let prev = &prev[j - 1];
+            let s = step.s;
             let mut dc = [0.0f64; 4];
             let mut dw = 0.0f64;
             if j > cfg.warmup {
@@ -707,8 +719,8 @@ fn backward_chunk(
                     && u[1] < size as f64 + 1.0
                 {
                     let fp = footprint(u);
-                    let c = &cs[j];
-                    let wq = ws[j];
+                    let c = &step.c;
+                    let wq = step.w;
                     let mut gu = [0.0f64; 2];
                     let mut take = |a: &[f64; 5], ii: usize, jj: usize| {
                         let wt = fp.wx[ii] * fp.wy[jj];
@@ -760,8 +772,8 @@ fn backward_chunk(
             for k in 0..4 {
                 acc[k] += lam_c[k];
             }
-            let prev_c = &cs[j - 1];
-            let prev_w = ws[j - 1];
+            let prev_c = &prev.c;
+            let prev_w = prev.w;
             kappa_bar -= (lam_c[0] * prev_c[0]
                 + lam_c[1] * prev_c[1]
                 + lam_c[2] * prev_c[2]
@@ -774,12 +786,12 @@ fn backward_chunk(
             }
             lam_w *= inv_k;
             // The map s_j = f_{g_j}(s_{j−1}).
-            if reset[j] {
+            if step.reset {
                 lam = [0.0, 0.0];
                 continue;
             }
             let (a, b) = ranges[gi];
-            lam = p.gens[gi].vjp(states[j - 1], lam, &mut grad[a..b]);
+            lam = p.gens[gi].vjp(prev.s, lam, &mut grad[a..b]);
         }
     }
     grad[lay.kappa_at] += kappa_bar * (kappa - 1.0);

@@ -10,9 +10,13 @@
 
 mod checkpoint;
 mod log;
+pub mod plan;
 
 pub use checkpoint::JsonCheckpoint;
 pub use log::CsvLog;
+pub use plan::{
+    CHECKPOINT_FILE, LOG_FILE, RunPlan, START_FILE, checkpoint_iteration, ensure_new_run_dir,
+};
 
 use argmin::core::observers::Observe;
 use argmin::core::{IterState, KV, KvValue};

@@ -8,12 +8,10 @@ use argmin::core::State;
 use argmin::core::observers::Observe;
 use ifslab::model::flame::learnable::{FlameStack, LearnableFlame};
 
-use crate::driver::{CsvLog, GradState, JsonCheckpoint, RunSpec, execute};
+use crate::driver::{GradState, RunPlan, START_FILE};
 use crate::error::{Error, Result};
 use crate::problems::flame::config::FlameLearnConfig;
 use crate::problems::flame::problem::{FLAME_TERMS, FlameProblem};
-use crate::problems::image::run::{CHECKPOINT_FILE, LOG_FILE, START_FILE, ensure_new_run_dir};
-use crate::registry;
 
 /// What a fit produced.
 #[derive(Clone, Debug)]
@@ -132,66 +130,22 @@ pub fn run_flame(
     observers: Vec<Box<dyn Observe<GradState> + Send>>,
 ) -> Result<FlameOutcome> {
     cfg.validate()?;
-    std::fs::create_dir_all(dir).map_err(|e| Error::file(dir, e))?;
-    if !resume {
-        ensure_new_run_dir(dir)?;
-    }
-    let ckpt_path = dir.join(CHECKPOINT_FILE);
-    let resume_from = if resume {
-        let bytes = std::fs::read(&ckpt_path)
-            .map_err(|e| Error::file(&ckpt_path, format!("cannot resume: {e}")))?;
-        let v: serde_json::Value = serde_json::from_slice(&bytes)
-            .map_err(|e| Error::file(&ckpt_path, format!("checkpoint is corrupt: {e}")))?;
-        Some(
-            v["state"]["iter"]
-                .as_u64()
-                .ok_or_else(|| Error::file(&ckpt_path, "checkpoint has no iteration count"))?,
-        )
-    } else {
-        None
+    let plan = RunPlan {
+        dir,
+        resume,
+        strategy: (cfg.strategy.name(), cfg.strategy.params()),
+        iterations: cfg.iterations,
+        seed: cfg.seed,
+        checkpoint_every: cfg.checkpoint_every,
+        terms: &FLAME_TERMS,
     };
+    let resume_from = plan.prepare()?;
     let problem = flame_problem(cfg, target)?;
-    let start_path = dir.join(START_FILE);
-    let start = if resume_from.is_some() {
-        let b = std::fs::read(&start_path).map_err(|e| Error::file(&start_path, e))?;
-        serde_json::from_slice::<Vec<f64>>(&b).map_err(|e| Error::file(&start_path, e))?
-    } else {
-        let t = initial_stack(cfg)?.params();
-        ifslab::io::write_atomic(
-            &start_path,
-            serde_json::to_string(&t)
-                .map_err(|e| Error::Numerical(format!("start θ: {e}")))?
-                .as_bytes(),
-        )?;
-        t
-    };
-    let stats = registry::stats(cfg.strategy.name())?;
-    let columns: Vec<&str> = FLAME_TERMS.iter().chain(stats).copied().collect();
-    let log = CsvLog::open(dir.join(LOG_FILE), &columns, resume_from)?;
-    let ckpt = JsonCheckpoint::new(&ckpt_path, cfg.checkpoint_every, resume, cfg.iterations);
+    let start = plan
+        .start(resume_from, || Ok(initial_stack(cfg)?.params()))?
+        .ok_or_else(|| Error::file(dir.join(START_FILE), "cannot resume: the start is missing"))?;
     let clock = Instant::now();
-    let entry = registry::find::<FlameProblem>(cfg.strategy.name())?;
-    let solver = entry.build(
-        cfg.strategy.params(),
-        &RunSpec {
-            iterations: cfg.iterations,
-            seed: cfg.seed,
-        },
-    )?;
-    let theta0 = if resume_from.is_some() {
-        Vec::new()
-    } else {
-        start.clone()
-    };
-    let (problem, state) = execute(
-        problem,
-        solver,
-        theta0,
-        cfg.iterations,
-        ckpt,
-        log,
-        observers,
-    )?;
+    let (problem, state) = plan.execute(problem, &start, resume_from, observers)?;
     let seconds = clock.elapsed().as_secs_f64();
     let last = state
         .get_param()
@@ -213,6 +167,6 @@ pub fn run_flame(
         iterations: at,
         loss,
         seconds,
-        log: dir.join(LOG_FILE),
+        log: plan.log_path(),
     })
 }

@@ -8,19 +8,13 @@ use argmin::core::State;
 use argmin::core::observers::Observe;
 use ifslab::model::Affine2;
 
-use crate::driver::{CsvLog, GradState, JsonCheckpoint, RunSpec, execute};
+use crate::driver::{GradState, RunPlan};
 use crate::error::{Error, Result};
 use crate::problems::image::config::InversionConfig;
 use crate::problems::image::init::initial_theta;
 use crate::problems::image::problem::{ImageProblem, TERMS};
-use crate::registry;
 
-/// File names inside a run folder.
-pub const CHECKPOINT_FILE: &str = "checkpoint.json";
-/// The per-iteration log.
-pub const LOG_FILE: &str = "log.csv";
-/// The θ a run started from (JSON array), kept so a resumed run can still return it.
-pub const START_FILE: &str = "start.json";
+pub use crate::driver::plan::{CHECKPOINT_FILE, LOG_FILE, START_FILE, ensure_new_run_dir};
 
 /// What an inversion produced.
 #[derive(Clone, Debug)]
@@ -121,19 +115,6 @@ fn select(
     ))
 }
 
-/// Refuses `dir` for a fresh run if it already holds one (its checkpoint), so that nothing of
-/// that run — its config, its target — is overwritten before the refusal.
-pub fn ensure_new_run_dir(dir: &Path) -> Result<()> {
-    if dir.join(CHECKPOINT_FILE).exists() {
-        return Err(Error::InvalidInput(format!(
-            "{} already holds a run (checkpoint.json); continue it with --resume {} or choose another output folder",
-            dir.display(),
-            dir.display()
-        )));
-    }
-    Ok(())
-}
-
 /// Runs the inversion described by `cfg` against `target` (framed, `size × size`), writing
 /// `checkpoint.json` and `log.csv` into `dir`. With `resume`, continues from the checkpoint
 /// there; the result is bit-identical to an uninterrupted run. `observers` see every
@@ -146,65 +127,27 @@ pub fn run_inversion(
     observers: Vec<Box<dyn Observe<GradState> + Send>>,
 ) -> Result<InversionOutcome> {
     cfg.validate()?;
-    std::fs::create_dir_all(dir).map_err(|e| Error::file(dir, e))?;
-    let ckpt_path = dir.join(CHECKPOINT_FILE);
-    if !resume {
-        ensure_new_run_dir(dir)?;
-    }
-    let resume_from = if resume {
-        let bytes = std::fs::read(&ckpt_path)
-            .map_err(|e| Error::file(&ckpt_path, format!("cannot resume: {e}")))?;
-        let v: serde_json::Value = serde_json::from_slice(&bytes)
-            .map_err(|e| Error::file(&ckpt_path, format!("checkpoint is corrupt: {e}")))?;
-        Some(
-            v["state"]["iter"]
-                .as_u64()
-                .ok_or_else(|| Error::file(&ckpt_path, "checkpoint has no iteration count"))?,
-        )
-    } else {
-        None
+    let plan = RunPlan {
+        dir,
+        resume,
+        strategy: (cfg.strategy.name(), cfg.strategy.params()),
+        iterations: cfg.iterations,
+        seed: cfg.seed,
+        checkpoint_every: cfg.checkpoint_every,
+        terms: &TERMS,
     };
+    let resume_from = plan.prepare()?;
     // A resumed run takes θ from its checkpoint; the start (an EM fit, say) is not redone.
     let problem = ImageProblem::from_config(cfg, target)?;
-    let start_path = dir.join(START_FILE);
-    let theta0 = if resume_from.is_some() {
-        Vec::new()
-    } else {
-        let t = initial_theta(cfg, problem.model(), problem.target())?;
-        ifslab::io::write_atomic(
-            &start_path,
-            serde_json::to_string(&t)
-                .map_err(|e| Error::Numerical(format!("start θ: {e}")))?
-                .as_bytes(),
-        )?;
-        t
-    };
+    // Run folders from before the start was kept have none: the start is then no candidate.
+    let start_theta = plan
+        .start(resume_from, || {
+            initial_theta(cfg, problem.model(), problem.target())
+        })?
+        .unwrap_or_default();
     let lpips_note = problem.lpips_skip_reason().map(str::to_owned);
-    let stats = registry::stats(cfg.strategy.name())?;
-    let columns: Vec<&str> = TERMS.iter().chain(stats).copied().collect();
-    let log = CsvLog::open(dir.join(LOG_FILE), &columns, resume_from)?;
-    let ckpt = JsonCheckpoint::new(&ckpt_path, cfg.checkpoint_every, resume, cfg.iterations);
-    let t = cfg.iterations;
     let start = Instant::now();
-    let entry = registry::find::<ImageProblem>(cfg.strategy.name())?;
-    let solver = entry.build(
-        cfg.strategy.params(),
-        &RunSpec {
-            iterations: t,
-            seed: cfg.seed,
-        },
-    )?;
-    let start_theta = if resume_from.is_some() {
-        // Run folders from before the start was kept have none: the start is then no candidate.
-        std::fs::read(&start_path)
-            .ok()
-            .and_then(|b| serde_json::from_slice::<Vec<f64>>(&b).ok())
-            .unwrap_or_default()
-    } else {
-        theta0.clone()
-    };
-    let res = execute(problem, solver, theta0, t, ckpt, log, observers)?;
-    let (problem, state) = res;
+    let (problem, state) = plan.execute(problem, &start_theta, resume_from, observers)?;
     let (theta, selection) = select(&problem, &state, &start_theta)?;
     let maps = problem.model().affine_maps(&theta)?;
     Ok(InversionOutcome {
