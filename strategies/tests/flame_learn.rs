@@ -333,3 +333,47 @@ fn hybrid_and_annealing_strategies_run_on_flames() {
         );
     }
 }
+
+/// With D-SSIM added to the MSE, the problem's gradient still matches finite differences of
+/// its loss (the pipeline's reverse pass fed the composite image gradient), and bad weights
+/// are named.
+#[test]
+fn the_composite_loss_gradient_matches_finite_differences() {
+    use ifslab_strategies::driver::Differentiable;
+    let dir = tempfile::tempdir().unwrap();
+    let target = sierpinski_target(dir.path(), 16);
+    let mut cfg = config(&target, 10);
+    cfg.sampler = DiffFlameConfig {
+        trajectories: 8,
+        steps: 60,
+        warmup: 5,
+        chunks: 2,
+        size: 16,
+    };
+    cfg.loss.dssim = 0.7;
+    let (t, _) = load_rgb_target(&target, 16, [1.0; 3]).unwrap();
+    let problem = ifslab_strategies::problems::flame::flame_problem(&cfg, t).unwrap();
+    let theta = ifslab_strategies::problems::flame::initial_stack(&cfg)
+        .unwrap()
+        .params();
+    let e = problem.evaluate(&theta, 0).unwrap();
+    assert_eq!(e.terms.len(), 2);
+    assert!(e.terms[1].1 > 0.0, "D-SSIM term logged");
+    let h = 1e-6;
+    let mut checked = 0;
+    for i in (0..theta.len()).step_by(3) {
+        let mut p = theta.clone();
+        p[i] += h;
+        let lp = problem.evaluate(&p, 0).unwrap().loss;
+        p[i] -= 2.0 * h;
+        let lm = problem.evaluate(&p, 0).unwrap().loss;
+        let fd = (lp - lm) / (2.0 * h);
+        let err = (fd - e.grad[i]).abs() / (1e-4 + fd.abs().max(e.grad[i].abs()));
+        assert!(err < 1e-3, "θ[{i}]: {} vs {fd}", e.grad[i]);
+        checked += (fd.abs() > 1e-8) as usize;
+    }
+    assert!(checked > 5, "only {checked} entries move the loss");
+    cfg.loss.dssim = -1.0;
+    let msg = cfg.validate().unwrap_err().to_string();
+    assert!(msg.contains("loss.dssim"), "{msg}");
+}

@@ -85,6 +85,11 @@ impl Generator {
         }
     }
 
+    /// Whether the generator is an affine map (a lone linear variation, no post map).
+    pub(crate) fn is_linear(&self) -> bool {
+        self.linear.is_some() && self.post.is_none()
+    }
+
     /// `Σᵥ wᵥ·Vᵥ(t)` at the pre-affine point `t`.
     #[inline(always)]
     fn variations(&self, tx: f64, ty: f64) -> [f64; 2] {

@@ -146,6 +146,10 @@ pub struct LayerBuffer {
     /// The largest `W` and where it is (first such pixel).
     pub w_max: f64,
     argmax: usize,
+    /// Every trajectory's states (NaN where a trajectory restarted at the origin), for the
+    /// reverse pass; empty for layers of linear generators, whose reverse pass recomputes
+    /// them.
+    states: Vec<[f64; 2]>,
 }
 
 /// What the forward pass produced.
@@ -264,13 +268,35 @@ fn chunk_ranges(cfg: &DiffFlameConfig) -> Vec<(usize, usize)> {
 
 fn splat_layer(p: &Prepared, order: &[u8], cfg: &DiffFlameConfig) -> LayerBuffer {
     let isa = Isa::detect();
-    let parts: Vec<Vec<[f64; 5]>> = chunk_ranges(cfg)
+    // Non-linear generators are costly to re-apply: their layers keep the states for the
+    // reverse pass (16 bytes a sample); linear ones recompute them, which is cheaper than
+    // writing and reading them back.
+    let keep = p.gens.iter().any(|g| !g.is_linear());
+    let mut states = vec![
+        [0.0f64; 2];
+        if keep {
+            cfg.trajectories * cfg.steps
+        } else {
+            0
+        }
+    ];
+    let ranges = chunk_ranges(cfg);
+    let mut slices: Vec<&mut [[f64; 2]]> = Vec::with_capacity(ranges.len());
+    let mut rest: &mut [[f64; 2]] = &mut states;
+    for &(t0, t1) in &ranges {
+        let n = if keep { (t1 - t0) * cfg.steps } else { 0 };
+        let (head, tail) = rest.split_at_mut(n);
+        slices.push(head);
+        rest = tail;
+    }
+    let parts: Vec<Vec<[f64; 5]>> = ranges
         .into_par_iter()
-        .map(|(t0, t1)| match isa {
+        .zip(slices)
+        .map(|((t0, t1), st)| match isa {
             #[cfg(target_arch = "x86_64")]
             // SAFETY: `Isa::detect` returned `Fma` only after finding AVX2, FMA and BMI1/2.
-            Isa::Fma => unsafe { splat_chunk_fma(p, order, cfg, t0, t1) },
-            _ => splat_chunk(p, order, cfg, t0, t1),
+            Isa::Fma => unsafe { splat_chunk_fma(p, order, cfg, t0, t1, st) },
+            _ => splat_chunk(p, order, cfg, t0, t1, st),
         })
         .collect();
     let mut it = parts.into_iter();
@@ -293,6 +319,7 @@ fn splat_layer(p: &Prepared, order: &[u8], cfg: &DiffFlameConfig) -> LayerBuffer
         pixels,
         w_max,
         argmax,
+        states,
     }
 }
 
@@ -305,8 +332,9 @@ fn splat_chunk_fma(
     cfg: &DiffFlameConfig,
     t0: usize,
     t1: usize,
+    states: &mut [[f64; 2]],
 ) -> Vec<[f64; 5]> {
-    splat_chunk(p, order, cfg, t0, t1)
+    splat_chunk(p, order, cfg, t0, t1, states)
 }
 
 /// Trajectories `t0..t1` splatted into a buffer of their own.
@@ -317,6 +345,7 @@ fn splat_chunk(
     cfg: &DiffFlameConfig,
     t0: usize,
     t1: usize,
+    states: &mut [[f64; 2]],
 ) -> Vec<[f64; 5]> {
     let size = cfg.size as i64;
     let half = cfg.size as f64 / 2.0;
@@ -325,14 +354,24 @@ fn splat_chunk(
     let mut buf = vec![[0.0f64; 5]; npix];
     for t in t0..t1 {
         let g = &order[t * cfg.steps..(t + 1) * cfg.steps];
+        let st: &mut [[f64; 2]] = if states.is_empty() {
+            &mut []
+        } else {
+            &mut states[(t - t0) * cfg.steps..(t - t0 + 1) * cfg.steps]
+        };
         let mut s = [0.0f64; 2];
         let mut c = [0.0f64; 4];
         let mut w = 0.0f64;
         for (j, &gi) in g.iter().enumerate().skip(1) {
             let gi = gi as usize;
             s = p.gens[gi].apply(s);
-            if is_bad_value(s[0]) || is_bad_value(s[1]) {
+            let bad = is_bad_value(s[0]) || is_bad_value(s[1]);
+            if bad {
                 s = [0.0, 0.0];
+            }
+            if let Some(slot) = st.get_mut(j) {
+                // A NaN on the tape marks the restart for the reverse pass.
+                *slot = if bad { [f64::NAN, f64::NAN] } else { s };
             }
             let col = &p.colors[gi];
             for k in 0..4 {
@@ -579,7 +618,13 @@ pub fn backward(
     let offsets = stack.offsets();
     let mut grad = vec![0.0; stack.n_params()];
     for (l, layer) in stack.layers.iter().enumerate() {
-        let g = backward_layer(layer, &order.layers[l], cfg, &adj[l]);
+        let g = backward_layer(
+            layer,
+            &order.layers[l],
+            cfg,
+            &adj[l],
+            &frame.layers[l].states,
+        );
         grad[offsets[l]..offsets[l + 1]].copy_from_slice(&g);
     }
     if let Background::Learned(logits) = stack.background {
@@ -599,16 +644,25 @@ fn backward_layer(
     order: &[u8],
     cfg: &DiffFlameConfig,
     adj: &[[f64; 5]],
+    states: &[[f64; 2]],
 ) -> Vec<f64> {
     let p = Prepared::new(layer);
+    let pass = LayerPass {
+        layer,
+        p: &p,
+        order,
+        cfg,
+        adj,
+        states,
+    };
     let isa = Isa::detect();
     let parts: Vec<Vec<f64>> = chunk_ranges(cfg)
         .into_par_iter()
         .map(|(t0, t1)| match isa {
             #[cfg(target_arch = "x86_64")]
             // SAFETY: `Isa::detect` returned `Fma` only after finding AVX2, FMA and BMI1/2.
-            Isa::Fma => unsafe { backward_chunk_fma(layer, &p, order, cfg, adj, t0, t1) },
-            _ => backward_chunk(layer, &p, order, cfg, adj, t0, t1),
+            Isa::Fma => unsafe { backward_chunk_fma(&pass, t0, t1) },
+            _ => backward_chunk(&pass, t0, t1),
         })
         .collect();
     let mut it = parts.into_iter();
@@ -619,6 +673,19 @@ fn backward_layer(
         }
     }
     grad
+}
+
+/// What the reverse pass of one layer reads.
+#[derive(Clone, Copy)]
+struct LayerPass<'a> {
+    layer: &'a LearnableFlame,
+    p: &'a Prepared,
+    order: &'a [u8],
+    cfg: &'a DiffFlameConfig,
+    /// `∂L/∂(C, W)` per pixel.
+    adj: &'a [[f64; 5]],
+    /// The kept forward states (empty: recompute).
+    states: &'a [[f64; 2]],
 }
 
 /// One step of a trajectory's tape: the state, the quality sums, whether it restarted.
@@ -634,29 +701,21 @@ struct Step {
 /// [`backward_chunk`] compiled with AVX2 and FMA (no contraction: the same bits).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma,bmi1,bmi2")]
-fn backward_chunk_fma(
-    layer: &LearnableFlame,
-    p: &Prepared,
-    order: &[u8],
-    cfg: &DiffFlameConfig,
-    adj: &[[f64; 5]],
-    t0: usize,
-    t1: usize,
-) -> Vec<f64> {
-    backward_chunk(layer, p, order, cfg, adj, t0, t1)
+fn backward_chunk_fma(pass: &LayerPass<'_>, t0: usize, t1: usize) -> Vec<f64> {
+    backward_chunk(pass, t0, t1)
 }
 
 /// The θ gradient of trajectories `t0..t1`.
 #[inline(always)]
-fn backward_chunk(
-    layer: &LearnableFlame,
-    p: &Prepared,
-    order: &[u8],
-    cfg: &DiffFlameConfig,
-    adj: &[[f64; 5]],
-    t0: usize,
-    t1: usize,
-) -> Vec<f64> {
+fn backward_chunk(pass: &LayerPass<'_>, t0: usize, t1: usize) -> Vec<f64> {
+    let LayerPass {
+        layer,
+        p,
+        order,
+        cfg,
+        adj,
+        states,
+    } = *pass;
     let lay = layer.layout();
     let size = cfg.size as i64;
     let half = cfg.size as f64 / 2.0;
@@ -676,15 +735,29 @@ fn backward_chunk(
     let mut kappa_bar = 0.0;
     for t in t0..t1 {
         let g = &order[t * steps..(t + 1) * steps];
-        // Tape.
+        // Tape: the states the forward pass kept, the quality sums again (five
+        // multiply–adds a step, not worth keeping).
+        let st: &[[f64; 2]] = if states.is_empty() {
+            &[]
+        } else {
+            &states[t * steps..(t + 1) * steps]
+        };
         let mut s = [0.0f64; 2];
         let mut c = [0.0f64; 4];
         let mut w = 0.0f64;
         tape[0] = Step::default();
         for j in 1..steps {
             let gi = g[j] as usize;
-            s = p.gens[gi].apply(s);
-            let bad = is_bad_value(s[0]) || is_bad_value(s[1]);
+            let bad = match st.get(j) {
+                Some(kept) => {
+                    s = *kept;
+                    s[0].is_nan()
+                }
+                None => {
+                    s = p.gens[gi].apply(s);
+                    is_bad_value(s[0]) || is_bad_value(s[1])
+                }
+            };
             if bad {
                 s = [0.0, 0.0];
             }

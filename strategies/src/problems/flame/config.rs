@@ -113,6 +113,48 @@ impl Default for Rates {
     }
 }
 
+/// The loss: the authors' MSE, plus the existing image losses where they help.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FlameLoss {
+    /// Weight of the authors' MSE (squared error summed over RGB, averaged over pixels).
+    pub mse: f64,
+    /// Weight of D-SSIM (1 − SSIM, 11-pixel Gaussian window σ 1.5), averaged over R, G, B.
+    pub dssim: f64,
+}
+
+impl Default for FlameLoss {
+    fn default() -> Self {
+        FlameLoss {
+            mse: 1.0,
+            dssim: 0.0,
+        }
+    }
+}
+
+impl FlameLoss {
+    /// Whether this is the authors' loss alone.
+    pub fn is_paper(&self) -> bool {
+        *self == FlameLoss::default()
+    }
+
+    /// Checks the weights, naming the field.
+    pub fn validate(&self) -> Result<()> {
+        for (name, w) in [("loss.mse", self.mse), ("loss.dssim", self.dssim)] {
+            if !(w.is_finite() && w >= 0.0) {
+                return Err(Error::param(
+                    name,
+                    format!("must be finite and ≥ 0, got {w}"),
+                ));
+            }
+        }
+        if self.mse == 0.0 && self.dssim == 0.0 {
+            return Err(Error::param("loss", "at least one weight must be > 0"));
+        }
+        Ok(())
+    }
+}
+
 /// A whole fit.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -136,6 +178,9 @@ pub struct FlameLearnConfig {
     /// Per-group learning-rate multipliers.
     #[serde(default)]
     pub rates: Rates,
+    /// The loss (the authors' MSE unless set; left out of written configs then).
+    #[serde(default, skip_serializing_if = "FlameLoss::is_paper")]
+    pub loss: FlameLoss,
     /// Redraw the generator order every this many iterations (0: drawn once, as the paper).
     #[serde(default)]
     pub redraw_every: u64,
@@ -191,6 +236,7 @@ impl FlameLearnConfig {
             learn: Learn::default(),
             init: LearnableInit::default(),
             rates: Rates::default(),
+            loss: FlameLoss::default(),
             redraw_every: 0,
             iterations: default_iterations(),
             seed: 0,
@@ -285,6 +331,7 @@ impl FlameLearnConfig {
             l.generators()?;
         }
         self.background()?;
+        self.loss.validate()?;
         let r = &self.rates;
         for (name, v) in [
             ("rates.generators", r.generators),

@@ -17,6 +17,6 @@ pub mod config;
 pub mod problem;
 pub mod run;
 
-pub use config::{BackgroundConfig, FlameLearnConfig, LayerSpec, Rates};
+pub use config::{BackgroundConfig, FlameLearnConfig, FlameLoss, LayerSpec, Rates};
 pub use problem::{FLAME_TERMS, FlameProblem};
 pub use run::{FlameOutcome, flame_problem, initial_stack, load_rgb_target, run_flame};

@@ -11,10 +11,10 @@ use ifslab::render::flame_diff::{
 use crate::driver::{Differentiable, Evaluation};
 use crate::error::{Error, Result};
 use crate::optim::annealing::Anneal;
-use crate::problems::flame::config::Rates;
+use crate::problems::flame::config::{FlameLoss, Rates};
 
-/// Names of the logged loss terms, in column order.
-pub const FLAME_TERMS: [&str; 1] = ["mse"];
+/// Names of the logged loss terms, in column order (unweighted).
+pub const FLAME_TERMS: [&str; 2] = ["mse", "dssim"];
 
 /// Fit a flame stack to an RGB target.
 #[derive(Debug)]
@@ -25,6 +25,7 @@ pub struct FlameProblem {
     target: Vec<f32>,
     seed: u64,
     redraw_every: u64,
+    loss: FlameLoss,
     rates: Vec<f64>,
     /// Which θ entries the authors' sampler and splatter hold (generators, final
     /// transform, κ).
@@ -43,7 +44,9 @@ impl FlameProblem {
         seed: u64,
         redraw_every: u64,
         rates: &Rates,
+        loss: FlameLoss,
     ) -> Result<Self> {
+        loss.validate()?;
         cfg.validate()?;
         stack.validate()?;
         if target.len() != 3 * cfg.size * cfg.size {
@@ -76,6 +79,7 @@ impl FlameProblem {
             target,
             seed,
             redraw_every,
+            loss,
             rates: r,
             geometry,
             freeze_geometry: rates.freeze_geometry,
@@ -130,6 +134,41 @@ impl FlameProblem {
         let f = self.render(theta, iter)?;
         Ok(mse(&f.image, &self.target)?.0)
     }
+
+    /// The configured loss (the objective the run minimises) at θ with the order of
+    /// iteration `iter`.
+    pub fn cost(&self, theta: &[f64], iter: u64) -> Result<f64> {
+        let f = self.render(theta, iter)?;
+        Ok(self.objective(&f.image)?.0)
+    }
+
+    /// The configured loss of `image`: total, its gradient, and the unweighted terms.
+    fn objective(&self, image: &[f64]) -> Result<(f64, Vec<f64>, [f64; 2])> {
+        let (m, mut grad) = mse(image, &self.target)?;
+        let w = &self.loss;
+        let mut total = w.mse * m;
+        grad.iter_mut().for_each(|g| *g *= w.mse);
+        let mut dssim = 0.0;
+        if w.dssim > 0.0 {
+            use ifslab::loss::{DSsim, ImageLoss};
+            let n = self.cfg.size * self.cfg.size;
+            let t64: Vec<f64> = self.target.iter().map(|&v| v as f64).collect();
+            for ch in 0..3 {
+                let (v, g) = DSsim::default().value_and_grad::<f64>(
+                    &image[ch * n..(ch + 1) * n],
+                    &t64[ch * n..(ch + 1) * n],
+                    self.cfg.size,
+                    self.cfg.size,
+                )?;
+                dssim += v / 3.0;
+                for (a, b) in grad[ch * n..(ch + 1) * n].iter_mut().zip(&g) {
+                    *a += w.dssim * b / 3.0;
+                }
+            }
+            total += w.dssim * dssim;
+        }
+        Ok((total, grad, [m, dssim]))
+    }
 }
 
 impl Differentiable for FlameProblem {
@@ -137,12 +176,12 @@ impl Differentiable for FlameProblem {
         let stack = self.stack_at(theta)?;
         let order = self.order_at(iter);
         let frame = forward(&stack, &self.cfg, &order)?;
-        let (loss, g) = mse(&frame.image, &self.target)?;
+        let (loss, g, [m, d]) = self.objective(&frame.image)?;
         let grad = backward(&stack, &self.cfg, &order, &frame, &g)?;
         Ok(Evaluation {
             loss,
             grad,
-            terms: vec![("mse", loss)],
+            terms: vec![("mse", m), ("dssim", d)],
         })
     }
 
@@ -162,8 +201,9 @@ impl Differentiable for FlameProblem {
 }
 
 impl Anneal for FlameProblem {
-    /// The MSE with the generator order of the run's start (a fixed random stream).
+    /// The configured loss with the generator order of the run's start (a fixed random
+    /// stream).
     fn anneal_cost(&self, theta: &[f64], _stream: u64, _frac: f64) -> Result<f64> {
-        self.loss(theta, 0)
+        self.cost(theta, 0)
     }
 }

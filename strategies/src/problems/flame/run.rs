@@ -16,7 +16,8 @@ use crate::problems::flame::problem::{FLAME_TERMS, FlameProblem};
 /// What a fit produced.
 #[derive(Clone, Debug)]
 pub struct FlameOutcome {
-    /// θ returned: the last iterate, or the start when the start scores lower.
+    /// θ returned: the last iterate, or the start when the start scores lower on the
+    /// configured loss.
     pub theta: Vec<f64>,
     /// Which of the two (`last`, `start`).
     pub returned: &'static str,
@@ -26,7 +27,7 @@ pub struct FlameOutcome {
     pub start_loss: f64,
     /// Iterations completed (including those before a resume).
     pub iterations: u64,
-    /// MSE of the returned θ (generator order of the last iteration).
+    /// The authors' MSE of the returned θ (generator order of the last iteration).
     pub loss: f64,
     /// Wall-clock seconds of this process's part of the run.
     pub seconds: f64,
@@ -115,6 +116,7 @@ pub fn flame_problem(cfg: &FlameLearnConfig, target: Vec<f32>) -> Result<FlamePr
         cfg.seed,
         cfg.redraw_every,
         &cfg.rates,
+        cfg.loss.clone(),
     )
 }
 
@@ -152,13 +154,16 @@ pub fn run_flame(
         .cloned()
         .ok_or_else(|| Error::Numerical("the run ended without parameters".into()))?;
     let at = state.get_iter();
-    let last_loss = problem.loss(&last, at).unwrap_or(f64::INFINITY);
-    let start_loss = problem.loss(&start, at)?;
-    let (theta, returned, loss) = if last_loss <= start_loss {
-        (last, "last", last_loss)
+    // Judged by the objective the run minimised; the MSE is reported beside it.
+    let last_cost = problem.cost(&last, at).unwrap_or(f64::INFINITY);
+    let start_cost = problem.cost(&start, at)?;
+    let (theta, returned) = if last_cost <= start_cost {
+        (last, "last")
     } else {
-        (start.clone(), "start", start_loss)
+        (start.clone(), "start")
     };
+    let loss = problem.loss(&theta, at)?;
+    let start_loss = problem.loss(&start, at)?;
     Ok(FlameOutcome {
         theta,
         returned,
