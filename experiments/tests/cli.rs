@@ -700,6 +700,8 @@ fn flame_learn_writes_its_run_folder_and_names_bad_variations() {
             "50",
             "--iters",
             "4",
+            "--optimiser",
+            "adam",
             "--eval-size",
             "48",
             "-o",
@@ -734,6 +736,8 @@ fn flame_learn_writes_its_run_folder_and_names_bad_variations() {
         .collect();
     assert_eq!(names, ["handkerchief"]);
     assert_eq!(flames[1].xforms[0].variations[0].kind().name(), "linear");
+    let config = std::fs::read_to_string(out.join("config.toml")).unwrap();
+    assert!(config.contains("kind = \"adam\""), "{config}");
     let res = Command::new(bin)
         .args(["flame", "learn"])
         .arg(&target)
