@@ -180,6 +180,15 @@ fn bad_input_is_answered_clearly() {
         (0.0, 1.0),
         "transparent pixels take the background"
     );
+    // `auto` fixes the background to the target's border colour (here the blue it was laid
+    // over).
+    let mut auto = FlameLearnConfig::new(&rgba, 4, vec!["linear".into()]);
+    auto.sampler.size = 10;
+    auto.background = BackgroundConfig::Named("auto".into());
+    assert_eq!(
+        auto.background(&t).unwrap(),
+        ifslab::model::flame::learnable::Background::Fixed([0.0, 0.0, 1.0])
+    );
     // A file that is not an image.
     let junk = dir.path().join("junk.png");
     std::fs::write(&junk, b"not a png").unwrap();
@@ -206,11 +215,12 @@ fn bad_input_is_answered_clearly() {
         "target = {:?}\n[[flames]]\nxforms = 4\nvariations = [\"linear\"]\n[init]\nkappa = 0.0\n",
         grey
     );
-    let cfg = FlameLearnConfig::from_toml(&text, Path::new("k.toml")).unwrap();
-    let e = ifslab_strategies::problems::flame::initial_stack(&cfg)
+    // Refused when the config is read, naming the field.
+    let e = FlameLearnConfig::from_toml(&text, Path::new("k.toml"))
         .unwrap_err()
         .to_string();
     assert!(e.contains("κ must be a finite number > 1, got 0"), "{e}");
+    assert!(e.contains("init.kappa"), "{e}");
     // Other config mistakes name their field.
     let bad = FlameLearnConfig::from_toml(
         &format!("target = {grey:?}\nflames = []\n"),
@@ -353,9 +363,7 @@ fn the_composite_loss_gradient_matches_finite_differences() {
     cfg.loss.dssim = 0.7;
     let (t, _) = load_rgb_target(&target, 16, [1.0; 3]).unwrap();
     let problem = ifslab_strategies::problems::flame::flame_problem(&cfg, t).unwrap();
-    let theta = ifslab_strategies::problems::flame::initial_stack(&cfg)
-        .unwrap()
-        .params();
+    let theta = problem.initial_params();
     let e = problem.evaluate(&theta, 0).unwrap();
     assert_eq!(e.terms.len(), 2);
     assert!(e.terms[1].1 > 0.0, "D-SSIM term logged");
@@ -376,4 +384,29 @@ fn the_composite_loss_gradient_matches_finite_differences() {
     cfg.loss.dssim = -1.0;
     let msg = cfg.validate().unwrap_err().to_string();
     assert!(msg.contains("loss.dssim"), "{msg}");
+}
+
+/// The generator order is drawn once (the paper) unless `redraw_every = k` asks for a new
+/// one every k iterations.
+#[test]
+fn the_generator_order_is_redrawn_only_when_asked() {
+    let dir = tempfile::tempdir().unwrap();
+    let target = sierpinski_target(dir.path(), 16);
+    let (t, _) = load_rgb_target(&target, 16, [1.0; 3]).unwrap();
+    let mut cfg = config(&target, 10);
+    cfg.sampler = DiffFlameConfig {
+        trajectories: 8,
+        steps: 60,
+        warmup: 5,
+        chunks: 2,
+        size: 16,
+    };
+    let fixed = ifslab_strategies::problems::flame::flame_problem(&cfg, t.clone()).unwrap();
+    assert_eq!(fixed.order_at(0), fixed.order_at(7));
+    cfg.redraw_every = 3;
+    let redrawn = ifslab_strategies::problems::flame::flame_problem(&cfg, t).unwrap();
+    assert_eq!(redrawn.order_at(0), fixed.order_at(0));
+    assert_eq!(redrawn.order_at(2), redrawn.order_at(0));
+    assert_ne!(redrawn.order_at(3), redrawn.order_at(0));
+    assert_ne!(redrawn.order_at(6), redrawn.order_at(3));
 }

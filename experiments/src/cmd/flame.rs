@@ -73,8 +73,9 @@ pub struct LearnArgs {
     /// Base learning rate (group rates multiply it; default 0.1 for gd, 0.05 for adam).
     #[arg(long)]
     pub lr: Option<f64>,
-    /// Background: white, black, learned.
-    #[arg(long, default_value = "white")]
+    /// Background: auto (fixed to the mean colour of the target's border), white, black,
+    /// learned.
+    #[arg(long, default_value = "auto")]
     pub background: String,
     /// Seed of the start and the generator order.
     #[arg(long, default_value_t = 0)]

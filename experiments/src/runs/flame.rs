@@ -12,7 +12,7 @@ use ifslab::image::Image;
 use ifslab::model::flame::write_flames;
 use ifslab::render::flame_diff::{DiffFlameConfig, GeneratorOrder, forward};
 use ifslab_strategies::problems::flame::{
-    FlameLearnConfig, flame_problem, load_rgb_target, run_flame,
+    BackgroundConfig, FlameLearnConfig, load_rgb_target, run_flame,
 };
 use ifslab_strategies::problems::image::ensure_new_run_dir;
 use serde::Serialize;
@@ -94,7 +94,13 @@ pub fn run(
 ) -> anyhow::Result<FlameSummary> {
     cfg.validate()?;
     let size = cfg.sampler.size;
-    let bg = cfg.background()?.rgb();
+    // Transparent targets are laid over the fixed background colour (white for `auto`
+    // and `learned`).
+    let bg = match &cfg.background {
+        BackgroundConfig::Rgb(c) => *c,
+        BackgroundConfig::Named(n) if n == "black" => [0.0; 3],
+        BackgroundConfig::Named(_) => [1.0; 3],
+    };
     let (target, note) = load_rgb_target(&cfg.target, size, bg)?;
     if !resume {
         ensure_new_run_dir(dir)?;
@@ -122,12 +128,10 @@ pub fn run(
         vec![Box::new(ProgressObserver::new(progress))],
     )?;
     let seconds = clock.elapsed().as_secs_f64();
-    let problem = flame_problem(cfg, target.clone())?;
-    let stack = problem.stack_at(&out.theta)?;
-    let frame = problem.render(&out.theta, out.iterations)?;
-    save_rgb(&dir.join("render.png"), &frame.image, size)?;
+    let stack = &out.stack;
+    save_rgb(&dir.join("render.png"), &out.image, size)?;
     let w = 2 * size + 4;
-    let cmp: Vec<f32> = side_by_side(&target, &frame.image, size)
+    let cmp: Vec<f32> = side_by_side(&target, &out.image, size)
         .iter()
         .map(|&v| v as f32)
         .collect();
@@ -141,8 +145,8 @@ pub fn run(
             trajectories: ((cfg.sampler.trajectories as f64 * scale).ceil() as usize).max(1),
             ..cfg.sampler.clone()
         };
-        let order = GeneratorOrder::draw(&stack, &ecfg, cfg.seed ^ 0x5eed);
-        let f = forward(&stack, &ecfg, &order)?;
+        let order = GeneratorOrder::draw(stack, &ecfg, cfg.seed ^ 0x5eed);
+        let f = forward(stack, &ecfg, &order)?;
         save_rgb(
             &dir.join(format!("render_{}.png", cfg.eval_size)),
             &f.image,

@@ -104,11 +104,11 @@ pub fn kappa_raw_of(kappa: f64) -> Result<f64> {
 }
 
 impl LearnableFlame {
-    /// A layer of `n` generators, each the pre-affine map followed by `variations` (weight
-    /// 1 each; `variations_for(i)` may differ per generator), started as the authors start (κ from `init`):
-    /// translations uniform in `[−1.25, 1.25]²`, linear parts `v·I` with `v ~ U(−0.75,
-    /// 0.75)`, final transform the identity plus a translation in `[−0.5, 0.5]²`, κ = 2,
-    /// colours' RGB logits uniform in [0, 1] and alpha logits 0.
+    /// A layer with one generator per entry of `variations`: the pre-affine map followed by
+    /// that entry's variations (weight 1 each), started as the authors start (with `init`'s
+    /// defaults): translations uniform in `[−1.25, 1.25]²`, linear parts `v·I` with
+    /// `v ~ U(−0.75, 0.75)`, final transform the identity plus a translation in
+    /// `[−0.5, 0.5]²`, κ = 2, colours' RGB logits uniform in [0, 1] and alpha logits 0.
     pub fn random(
         variations: &[Vec<VariationKind>],
         learn: Learn,
@@ -134,16 +134,6 @@ impl LearnableFlame {
             let mut kinds = kinds.clone();
             kinds.sort();
             kinds.dedup();
-            if let Some(k) = kinds.iter().find(|k| k.is_random()) {
-                return Err(Error::param(
-                    "variations",
-                    format!(
-                        "`{}` draws random numbers and has no derivative; learnable flames \
-                         take deterministic variations only",
-                        k.name()
-                    ),
-                ));
-            }
             let tx = init.translation * (2.0 * rng.random::<f64>() - 1.0);
             let ty = init.translation * (2.0 * rng.random::<f64>() - 1.0);
             let v = init.scale * (2.0 * rng.random::<f64>() - 1.0);

@@ -126,12 +126,43 @@ pub struct PreparedXform {
     pub visibility: f64,
 }
 
+/// One weighted variation ready for evaluation (what [`PreparedXform`] and the learnable
+/// flames' generators loop over).
 #[derive(Clone, Copy, Debug)]
-struct PreparedVar {
-    kind: VariationKind,
-    weight: f64,
-    params: [f64; MAX_PARAMS],
-    derived: [f64; crate::model::flame::variation::MAX_DERIVED],
+pub(crate) struct PreparedVar {
+    pub(crate) kind: VariationKind,
+    pub(crate) weight: f64,
+    pub(crate) params: [f64; MAX_PARAMS],
+    pub(crate) derived: [f64; crate::model::flame::variation::MAX_DERIVED],
+}
+
+impl PreparedVar {
+    pub(crate) fn of(v: &Variation) -> Self {
+        PreparedVar {
+            kind: v.kind(),
+            weight: v.weight,
+            params: *v.param_array(),
+            derived: *v.derived(),
+        }
+    }
+}
+
+/// `Σᵥ wᵥ·Vᵥ(t)` in flam3's order: the variations of a transform summed from zero at the
+/// pre-affine point `f`.
+#[inline(always)]
+pub(crate) fn sum_variations<R: RngCore + ?Sized>(
+    vars: &[PreparedVar],
+    coefs: &Coefs,
+    f: &Pre<f64>,
+    rng: &mut R,
+) -> (f64, f64) {
+    let (mut x, mut y) = (0.0, 0.0);
+    for v in vars {
+        let (dx, dy) = eval(v.kind, v.weight, &v.params, &v.derived, coefs, f, rng);
+        x += dx;
+        y += dy;
+    }
+    (x, y)
 }
 
 impl PreparedXform {
@@ -147,20 +178,7 @@ impl PreparedXform {
         } else {
             Pre::without_radius(tx, ty)
         };
-        let (mut x, mut y) = (0.0, 0.0);
-        for v in &self.vars {
-            let (dx, dy) = eval(
-                v.kind,
-                v.weight,
-                &v.params,
-                &v.derived,
-                &self.coefs,
-                &f,
-                rng,
-            );
-            x += dx;
-            y += dy;
-        }
+        let (x, y) = sum_variations(&self.vars, &self.coefs, &f, rng);
         let point = match &self.post {
             Some(post) => {
                 let (a, b) = affine(post, x, y);
@@ -257,12 +275,7 @@ impl Xform {
                 .variations
                 .iter()
                 .filter(|v| v.weight != 0.0 && v.kind() != VariationKind::PreBlur)
-                .map(|v| PreparedVar {
-                    kind: v.kind(),
-                    weight: v.weight,
-                    params: *v.param_array(),
-                    derived: *v.derived(),
-                })
+                .map(PreparedVar::of)
                 .collect(),
             color: self.color,
             color_speed: self.color_speed,
@@ -519,7 +532,7 @@ fn eval_const<const K: usize>(
 }
 
 /// The generator handed to deterministic variations, which never draw.
-struct NoRng;
+pub(crate) struct NoRng;
 
 impl RngCore for NoRng {
     fn next_u32(&mut self) -> u32 {

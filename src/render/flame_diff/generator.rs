@@ -11,17 +11,9 @@
 
 use crate::model::flame::learnable::Learn;
 use crate::model::flame::real::{Dual, Real};
-use crate::model::flame::variation::{MAX_DERIVED, MAX_PARAMS, VariationKind};
+use crate::model::flame::variation::VariationKind;
 use crate::model::flame::variations::{Pre, eval};
-use crate::model::flame::xform::{Coefs, Xform, affine};
-
-#[derive(Clone, Debug)]
-struct Var {
-    kind: VariationKind,
-    weight: f64,
-    params: [f64; MAX_PARAMS],
-    derived: [f64; MAX_DERIVED],
-}
+use crate::model::flame::xform::{Coefs, NoRng, PreparedVar, Xform, affine, sum_variations};
 
 /// A generator prepared for sampling and differentiation.
 #[derive(Clone, Debug)]
@@ -32,38 +24,15 @@ pub(crate) struct Generator {
     linear: Option<f64>,
     radius: bool,
     reads_coefs: bool,
-    vars: Vec<Var>,
+    /// Every variation, zero weights included (their weights may be learned).
+    vars: Vec<PreparedVar>,
     learn: Learn,
     xform: Xform,
 }
 
-/// The generator that never draws: deterministic variations only reach it.
-struct NoRng;
-
-impl rand::RngCore for NoRng {
-    fn next_u32(&mut self) -> u32 {
-        0
-    }
-    fn next_u64(&mut self) -> u64 {
-        0
-    }
-    fn fill_bytes(&mut self, dst: &mut [u8]) {
-        dst.fill(0);
-    }
-}
-
 impl Generator {
     pub(crate) fn new(x: &Xform, learn: Learn) -> Self {
-        let vars: Vec<Var> = x
-            .variations
-            .iter()
-            .map(|v| Var {
-                kind: v.kind(),
-                weight: v.weight,
-                params: *v.param_array(),
-                derived: *v.derived(),
-            })
-            .collect();
+        let vars: Vec<PreparedVar> = x.variations.iter().map(PreparedVar::of).collect();
         let linear = match vars.as_slice() {
             [v] if v.kind == VariationKind::Linear => Some(v.weight),
             _ => None,
@@ -101,20 +70,7 @@ impl Generator {
         } else {
             Pre::without_radius(tx, ty)
         };
-        let (mut x, mut y) = (0.0, 0.0);
-        for v in &self.vars {
-            let (dx, dy) = eval(
-                v.kind,
-                v.weight,
-                &v.params,
-                &v.derived,
-                &self.coefs,
-                &f,
-                &mut NoRng,
-            );
-            x += dx;
-            y += dy;
-        }
+        let (x, y) = sum_variations(&self.vars, &self.coefs, &f, &mut NoRng);
         [x, y]
     }
 

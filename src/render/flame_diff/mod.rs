@@ -109,11 +109,14 @@ impl DiffFlameConfig {
 }
 
 /// The generator order `G` of every layer: `trajectories × steps` indices each (index 0 of
-/// a trajectory is unused: its first state is the origin).
+/// a trajectory is unused: its first state is the origin), drawn for a stack's generator
+/// counts and checked against them in O(1) per layer when used.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GeneratorOrder {
     /// Per layer, row-major by trajectory.
-    pub layers: Vec<Vec<u8>>,
+    layers: Vec<Vec<u8>>,
+    /// Per layer, the number of generators the indices were drawn for.
+    generators: Vec<usize>,
 }
 
 impl GeneratorOrder {
@@ -133,7 +136,10 @@ impl GeneratorOrder {
                     .collect()
             })
             .collect();
-        GeneratorOrder { layers }
+        GeneratorOrder {
+            layers,
+            generators: stack.layers.iter().map(|l| l.len()).collect(),
+        }
     }
 }
 
@@ -205,10 +211,14 @@ struct Footprint {
 /// `e^{−2}`: the weight factor between a footprint's centre and its neighbours.
 const E_M2: f64 = 0.135_335_283_236_612_7;
 
-/// The footprint of a sample at screen position `u` (`u > −2` on both axes: callers skip
-/// samples further off the image).
+/// The footprint of a sample at screen position `u` on a `size²` image, or `None` when no
+/// cell of it can fall on the image (also for NaN).
 #[inline(always)]
-fn footprint(u: [f64; 2]) -> Footprint {
+fn footprint(u: [f64; 2], size: usize) -> Option<Footprint> {
+    let hi = size as f64 + 1.0;
+    if !(u[0] > -2.0 && u[1] > -2.0 && u[0] < hi && u[1] < hi) {
+        return None;
+    }
     // floor(u + 0.5) by truncation of a positive number (no libm call).
     let cx = ((u[0] + 2.5) as i64 - 2) as f64;
     let cy = ((u[1] + 2.5) as i64 - 2) as f64;
@@ -221,42 +231,55 @@ fn footprint(u: [f64; 2]) -> Footprint {
         let ae = a * E_M2;
         [ae / b, a, ae * b]
     };
-    Footprint {
+    Some(Footprint {
         cx: cx as i64,
         cy: cy as i64,
         wx: axis(fx),
         wy: axis(fy),
         dx: [fx + 1.0, fx, fx - 1.0],
         dy: [fy + 1.0, fy, fy - 1.0],
-    }
+    })
 }
 
-/// Whether the whole 3×3 footprint lies on the image.
-#[inline(always)]
-fn inside(fp: &Footprint, size: i64) -> bool {
-    fp.cx >= 1 && fp.cy >= 1 && fp.cx <= size - 2 && fp.cy <= size - 2
+impl Footprint {
+    /// Calls `f(ii, jj, pixel)` for every cell `(ii, jj)` (x and y offsets 0..3) on a
+    /// `size²` image, `pixel` its row-major index (rows top-down). Footprints wholly
+    /// inside the image, nearly all of them, take a branch-free path over three runs of
+    /// three pixels.
+    #[inline(always)]
+    fn cells(&self, size: usize, mut f: impl FnMut(usize, usize, usize)) {
+        let n = size as i64;
+        if self.cx >= 1 && self.cy >= 1 && self.cx <= n - 2 && self.cy <= n - 2 {
+            // Footprint row jj is image row size − 1 − (cy + jj − 1).
+            let top = ((n - 1 - (self.cy + 1)) * n + self.cx - 1) as usize;
+            for jj in 0..3 {
+                let row = top + (2 - jj) * size;
+                for ii in 0..3 {
+                    f(ii, jj, row + ii);
+                }
+            }
+        } else {
+            for jj in 0..3 {
+                for ii in 0..3 {
+                    let px = self.cx + ii as i64 - 1;
+                    let py = self.cy + jj as i64 - 1;
+                    if px >= 0 && py >= 0 && px < n && py < n {
+                        f(ii, jj, ((n - 1 - py) * n + px) as usize);
+                    }
+                }
+            }
+        }
+    }
 }
 
 /// Screen position of a state through the final transform.
 #[inline(always)]
-fn to_screen(fin: &[f64; 6], s: [f64; 2], half: f64) -> ([f64; 2], [f64; 2]) {
+fn to_screen(fin: &[f64; 6], s: [f64; 2], half: f64) -> [f64; 2] {
     let y = [
         fin[0] * s[0] + fin[2] * s[1] + fin[4],
         fin[1] * s[0] + fin[3] * s[1] + fin[5],
     ];
-    (y, [(y[0] + 1.0) * half, (y[1] + 1.0) * half])
-}
-
-/// Pixel index of footprint cell `(i, j)` (x offset i, y offset j), if on the image.
-#[inline(always)]
-fn pixel(fp: &Footprint, i: usize, j: usize, size: i64) -> Option<usize> {
-    let px = fp.cx + i as i64 - 1;
-    let py = fp.cy + j as i64 - 1;
-    if px < 0 || py < 0 || px >= size || py >= size {
-        None
-    } else {
-        Some(((size - 1 - py) * size + px) as usize)
-    }
+    [(y[0] + 1.0) * half, (y[1] + 1.0) * half]
 }
 
 fn chunk_ranges(cfg: &DiffFlameConfig) -> Vec<(usize, usize)> {
@@ -347,7 +370,6 @@ fn splat_chunk(
     t1: usize,
     states: &mut [[f64; 2]],
 ) -> Vec<[f64; 5]> {
-    let size = cfg.size as i64;
     let half = cfg.size as f64 / 2.0;
     let npix = cfg.size * cfg.size;
     let inv_k = 1.0 / p.kappa;
@@ -381,39 +403,18 @@ fn splat_chunk(
             if j <= cfg.warmup {
                 continue;
             }
-            let (_, u) = to_screen(&p.fin, s, half);
-            if !(u[0] > -2.0 && u[1] > -2.0 && u[0] < size as f64 + 1.0 && u[1] < size as f64 + 1.0)
-            {
+            let Some(fp) = footprint(to_screen(&p.fin, s, half), cfg.size) else {
                 continue;
-            }
-            let fp = footprint(u);
-            let add = |b: &mut [f64; 5], wt: f64| {
+            };
+            fp.cells(cfg.size, |ii, jj, px| {
+                let wt = fp.wx[ii] * fp.wy[jj];
+                let b = &mut buf[px];
                 b[0] += wt * c[0];
                 b[1] += wt * c[1];
                 b[2] += wt * c[2];
                 b[3] += wt * c[3];
                 b[4] += wt * w;
-            };
-            if inside(&fp, size) {
-                // Rows of the image run top-down: footprint row jj is image row
-                // size − 1 − (cy + jj − 1).
-                let top = ((size - 1 - (fp.cy + 1)) * size + fp.cx - 1) as usize;
-                for jj in 0..3 {
-                    let row = top + (2 - jj) * cfg.size;
-                    let cells = &mut buf[row..row + 3];
-                    for (ii, b) in cells.iter_mut().enumerate() {
-                        add(b, fp.wx[ii] * fp.wy[jj]);
-                    }
-                }
-            } else {
-                for jj in 0..3 {
-                    for ii in 0..3 {
-                        if let Some(px) = pixel(&fp, ii, jj, size) {
-                            add(&mut buf[px], fp.wx[ii] * fp.wy[jj]);
-                        }
-                    }
-                }
-            }
+            });
         }
     }
     buf
@@ -437,7 +438,13 @@ fn check_order(stack: &FlameStack, cfg: &DiffFlameConfig, order: &GeneratorOrder
             stack.layers.len()
         )));
     }
-    for (l, (o, layer)) in order.layers.iter().zip(&stack.layers).enumerate() {
+    for (l, ((o, &n), layer)) in order
+        .layers
+        .iter()
+        .zip(&order.generators)
+        .zip(&stack.layers)
+        .enumerate()
+    {
         if o.len() != cfg.trajectories * cfg.steps {
             return Err(Error::Shape(format!(
                 "layer {l}: generator order of {} entries for {} trajectories × {} steps",
@@ -446,9 +453,9 @@ fn check_order(stack: &FlameStack, cfg: &DiffFlameConfig, order: &GeneratorOrder
                 cfg.steps
             )));
         }
-        if let Some(&g) = o.iter().find(|&&g| g as usize >= layer.len()) {
+        if n != layer.len() {
             return Err(Error::Shape(format!(
-                "layer {l}: generator index {g} for {} generators",
+                "layer {l}: generator order drawn for {n} generators, the layer has {}",
                 layer.len()
             )));
         }
@@ -637,8 +644,9 @@ pub fn backward(
     Ok(grad)
 }
 
-/// One layer's θ gradient from its buffer adjoints, trajectory by trajectory: the forward
-/// states are recomputed into a per-trajectory tape and scanned backwards.
+/// One layer's θ gradient from its buffer adjoints, trajectory by trajectory: a tape of the
+/// states (those the forward pass kept, or recomputed for linear layers) and the quality
+/// sums, scanned backwards.
 fn backward_layer(
     layer: &LearnableFlame,
     order: &[u8],
@@ -717,7 +725,6 @@ fn backward_chunk(pass: &LayerPass<'_>, t0: usize, t1: usize) -> Vec<f64> {
         states,
     } = *pass;
     let lay = layer.layout();
-    let size = cfg.size as i64;
     let half = cfg.size as f64 / 2.0;
     let kappa = p.kappa;
     let inv_k = 1.0 / kappa;
@@ -784,56 +791,34 @@ fn backward_chunk(pass: &LayerPass<'_>, t0: usize, t1: usize) -> Vec<f64> {
             let s = step.s;
             let mut dc = [0.0f64; 4];
             let mut dw = 0.0f64;
-            if j > cfg.warmup {
-                let (_, u) = to_screen(&p.fin, s, half);
-                if u[0] > -2.0
-                    && u[1] > -2.0
-                    && u[0] < size as f64 + 1.0
-                    && u[1] < size as f64 + 1.0
-                {
-                    let fp = footprint(u);
-                    let c = &step.c;
-                    let wq = step.w;
-                    let mut gu = [0.0f64; 2];
-                    let mut take = |a: &[f64; 5], ii: usize, jj: usize| {
-                        let wt = fp.wx[ii] * fp.wy[jj];
-                        for k in 0..4 {
-                            dc[k] += wt * a[k];
-                        }
-                        dw += wt * a[4];
-                        let val = a[0] * c[0] + a[1] * c[1] + a[2] * c[2] + a[3] * c[3] + a[4] * wq;
-                        let f = -4.0 * val * wt;
-                        gu[0] += f * fp.dx[ii];
-                        gu[1] += f * fp.dy[jj];
-                    };
-                    if inside(&fp, size) {
-                        let top = ((size - 1 - (fp.cy + 1)) * size + fp.cx - 1) as usize;
-                        for jj in 0..3 {
-                            let row = top + (2 - jj) * cfg.size;
-                            for (ii, a) in adj[row..row + 3].iter().enumerate() {
-                                take(a, ii, jj);
-                            }
-                        }
-                    } else {
-                        for jj in 0..3 {
-                            for ii in 0..3 {
-                                if let Some(px) = pixel(&fp, ii, jj, size) {
-                                    take(&adj[px], ii, jj);
-                                }
-                            }
-                        }
+            if j > cfg.warmup
+                && let Some(fp) = footprint(to_screen(&p.fin, s, half), cfg.size)
+            {
+                let c = &step.c;
+                let wq = step.w;
+                let mut gu = [0.0f64; 2];
+                fp.cells(cfg.size, |ii, jj, px| {
+                    let a = &adj[px];
+                    let wt = fp.wx[ii] * fp.wy[jj];
+                    for k in 0..4 {
+                        dc[k] += wt * a[k];
                     }
-                    let yb = [gu[0] * half, gu[1] * half];
-                    fin_acc[0] += yb[0] * s[0];
-                    fin_acc[1] += yb[1] * s[0];
-                    fin_acc[2] += yb[0] * s[1];
-                    fin_acc[3] += yb[1] * s[1];
-                    fin_acc[4] += yb[0];
-                    fin_acc[5] += yb[1];
-                    let fin = &p.fin;
-                    lam[0] += fin[0] * yb[0] + fin[1] * yb[1];
-                    lam[1] += fin[2] * yb[0] + fin[3] * yb[1];
-                }
+                    dw += wt * a[4];
+                    let val = a[0] * c[0] + a[1] * c[1] + a[2] * c[2] + a[3] * c[3] + a[4] * wq;
+                    let f = -4.0 * val * wt;
+                    gu[0] += f * fp.dx[ii];
+                    gu[1] += f * fp.dy[jj];
+                });
+                let yb = [gu[0] * half, gu[1] * half];
+                fin_acc[0] += yb[0] * s[0];
+                fin_acc[1] += yb[1] * s[0];
+                fin_acc[2] += yb[0] * s[1];
+                fin_acc[3] += yb[1] * s[1];
+                fin_acc[4] += yb[0];
+                fin_acc[5] += yb[1];
+                let fin = &p.fin;
+                lam[0] += fin[0] * yb[0] + fin[1] * yb[1];
+                lam[1] += fin[2] * yb[0] + fin[3] * yb[1];
             }
             // Quality recurrences: C_j = c_{g_j} + C_{j−1}/κ, W_j = 1 + W_{j−1}/κ.
             for k in 0..4 {
@@ -887,7 +872,7 @@ mod tests {
     #[test]
     fn footprint_centre_is_the_nearest_pixel() {
         for u in [-1.4, -0.6, -0.4, 0.0, 0.49, 0.51, 7.3, 99.5] {
-            let fp = footprint([u, u]);
+            let fp = footprint([u, u], 200).unwrap();
             assert_eq!(fp.cx as f64, (u + 0.5).floor(), "u = {u}");
             assert!((fp.wx[1] - (-2.0 * (u - fp.cx as f64).powi(2)).exp()).abs() < 1e-13);
         }

@@ -62,7 +62,8 @@ impl LayerSpec {
     }
 }
 
-/// The compositor's background: `"white"`, `"black"`, `"learned"` or `[r, g, b]`.
+/// The compositor's background: `"white"`, `"black"`, `"learned"`, `"auto"` (fixed to the
+/// mean colour of the target's border pixels) or `[r, g, b]`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(untagged)]
 pub enum BackgroundConfig {
@@ -273,8 +274,12 @@ impl FlameLearnConfig {
         Ok(cfg)
     }
 
-    /// The background as the model holds it.
-    pub fn background(&self) -> Result<ifslab::model::flame::learnable::Background> {
+    /// The background as the model holds it for `target` (three planes of `size²`; only
+    /// `"auto"` reads it).
+    pub fn background(
+        &self,
+        target: &[f32],
+    ) -> Result<ifslab::model::flame::learnable::Background> {
         use ifslab::model::flame::learnable::Background;
         Ok(match &self.background {
             BackgroundConfig::Rgb(c) => {
@@ -290,10 +295,11 @@ impl FlameLearnConfig {
                 "white" => Background::Fixed([1.0; 3]),
                 "black" => Background::Fixed([0.0; 3]),
                 "learned" => Background::Learned([0.0; 3]),
+                "auto" => Background::Fixed(border_mean(target, self.sampler.size)),
                 other => {
                     return Err(Error::param(
                         "background",
-                        format!("`{other}`: use white, black, learned or [r, g, b]"),
+                        format!("`{other}`: use white, black, learned, auto or [r, g, b]"),
                     ));
                 }
             },
@@ -330,7 +336,22 @@ impl FlameLearnConfig {
             }
             l.generators()?;
         }
-        self.background()?;
+        if let BackgroundConfig::Named(n) = &self.background
+            && !["white", "black", "learned", "auto"].contains(&n.as_str())
+        {
+            return Err(Error::param(
+                "background",
+                format!("`{n}`: use white, black, learned, auto or [r, g, b]"),
+            ));
+        }
+        if let BackgroundConfig::Rgb(c) = &self.background
+            && c.iter().any(|v| !(0.0..=1.0).contains(v))
+        {
+            return Err(Error::param(
+                "background",
+                format!("components lie in [0, 1], got {c:?}"),
+            ));
+        }
         self.loss.validate()?;
         let r = &self.rates;
         for (name, v) in [
@@ -347,6 +368,8 @@ impl FlameLearnConfig {
                 ));
             }
         }
+        ifslab::model::flame::learnable::kappa_raw_of(self.init.kappa)
+            .map_err(|e| Error::param("init.kappa", e.to_string()))?;
         for (name, v) in [
             ("init.translation", self.init.translation),
             ("init.scale", self.init.scale),
@@ -368,4 +391,26 @@ impl FlameLearnConfig {
         self.strategy.validate()?;
         Ok(())
     }
+}
+
+/// The mean colour of the outermost ring of pixels of a `size²` RGB target (white for an
+/// empty or mis-sized one).
+fn border_mean(target: &[f32], size: usize) -> [f64; 3] {
+    let n = size * size;
+    if size == 0 || target.len() != 3 * n {
+        return [1.0; 3];
+    }
+    let mut sum = [0.0f64; 3];
+    let mut count = 0usize;
+    for y in 0..size {
+        for x in 0..size {
+            if x == 0 || y == 0 || x + 1 == size || y + 1 == size {
+                for (ch, s) in sum.iter_mut().enumerate() {
+                    *s += target[ch * n + y * size + x] as f64;
+                }
+                count += 1;
+            }
+        }
+    }
+    sum.map(|s| (s / count as f64).clamp(0.0, 1.0))
 }

@@ -138,8 +138,20 @@ impl FlameProblem {
     /// The configured loss (the objective the run minimises) at θ with the order of
     /// iteration `iter`.
     pub fn cost(&self, theta: &[f64], iter: u64) -> Result<f64> {
+        Ok(self.scores(theta, iter)?.0)
+    }
+
+    /// One render at θ with the order of iteration `iter`: the configured loss, the
+    /// authors' MSE and the image.
+    pub fn scores(&self, theta: &[f64], iter: u64) -> Result<(f64, f64, Vec<f64>)> {
         let f = self.render(theta, iter)?;
-        Ok(self.objective(&f.image)?.0)
+        let (cost, _, [m, _]) = self.objective(&f.image)?;
+        Ok((cost, m, f.image))
+    }
+
+    /// θ of the stack the problem was made with (its start).
+    pub fn initial_params(&self) -> Vec<f64> {
+        self.stack.params()
     }
 
     /// The configured loss of `image`: total, its gradient, and the unweighted terms.

@@ -29,6 +29,11 @@ pub struct FlameOutcome {
     pub iterations: u64,
     /// The authors' MSE of the returned θ (generator order of the last iteration).
     pub loss: f64,
+    /// The returned θ as a flame stack.
+    pub stack: FlameStack,
+    /// Its render at the training size (three planes, generator order of the last
+    /// iteration).
+    pub image: Vec<f64>,
     /// Wall-clock seconds of this process's part of the run.
     pub seconds: f64,
     /// The CSV log.
@@ -84,7 +89,7 @@ pub fn load_rgb_target(
 }
 
 /// The start `cfg` describes: each layer drawn in the authors' style from the run's seed.
-pub fn initial_stack(cfg: &FlameLearnConfig) -> Result<FlameStack> {
+pub fn initial_stack(cfg: &FlameLearnConfig, target: &[f32]) -> Result<FlameStack> {
     let layers = cfg
         .flames
         .iter()
@@ -101,7 +106,7 @@ pub fn initial_stack(cfg: &FlameLearnConfig) -> Result<FlameStack> {
         .collect::<Result<Vec<_>>>()?;
     let stack = FlameStack {
         layers,
-        background: cfg.background()?,
+        background: cfg.background(target)?,
     };
     stack.validate()?;
     Ok(stack)
@@ -110,7 +115,7 @@ pub fn initial_stack(cfg: &FlameLearnConfig) -> Result<FlameStack> {
 /// The problem `cfg` describes for `target`.
 pub fn flame_problem(cfg: &FlameLearnConfig, target: Vec<f32>) -> Result<FlameProblem> {
     FlameProblem::new(
-        initial_stack(cfg)?,
+        initial_stack(cfg, &target)?,
         cfg.sampler.clone(),
         target,
         cfg.seed,
@@ -144,7 +149,7 @@ pub fn run_flame(
     let resume_from = plan.prepare()?;
     let problem = flame_problem(cfg, target)?;
     let start = plan
-        .start(resume_from, || Ok(initial_stack(cfg)?.params()))?
+        .start(resume_from, || Ok(problem.initial_params()))?
         .ok_or_else(|| Error::file(dir.join(START_FILE), "cannot resume: the start is missing"))?;
     let clock = Instant::now();
     let (problem, state) = plan.execute(problem, &start, resume_from, observers)?;
@@ -155,22 +160,21 @@ pub fn run_flame(
         .ok_or_else(|| Error::Numerical("the run ended without parameters".into()))?;
     let at = state.get_iter();
     // Judged by the objective the run minimised; the MSE is reported beside it.
-    let last_cost = problem.cost(&last, at).unwrap_or(f64::INFINITY);
-    let start_cost = problem.cost(&start, at)?;
-    let (theta, returned) = if last_cost <= start_cost {
-        (last, "last")
-    } else {
-        (start.clone(), "start")
+    let (start_cost, start_loss, start_image) = problem.scores(&start, at)?;
+    let last_scores = problem.scores(&last, at).ok();
+    let (theta, returned, loss, image) = match last_scores {
+        Some((cost, mse, image)) if cost <= start_cost => (last, "last", mse, image),
+        _ => (start.clone(), "start", start_loss, start_image),
     };
-    let loss = problem.loss(&theta, at)?;
-    let start_loss = problem.loss(&start, at)?;
     Ok(FlameOutcome {
+        stack: problem.stack_at(&theta)?,
         theta,
         returned,
         start,
         start_loss,
         iterations: at,
         loss,
+        image,
         seconds,
         log: plan.log_path(),
     })
