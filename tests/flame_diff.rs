@@ -3,19 +3,24 @@
 //! transform, κ, colours, background), in f64 on a small problem; thread-count
 //! independence; the painter and compositor on hand-computed pixels.
 
+use ifslab::chaos::Isa;
 use ifslab::model::flame::VariationKind as V;
 use ifslab::model::flame::learnable::{
     Background, FlameStack, Learn, LearnableFlame, LearnableInit,
 };
-use ifslab::render::flame_diff::{DiffFlameConfig, GeneratorOrder, backward, forward, mse};
+use ifslab::render::flame_diff::{
+    DiffFlameConfig, GeneratorOrder, backward, backward_with_isa, forward, forward_with_isa, mse,
+};
 
 fn small_cfg() -> DiffFlameConfig {
     DiffFlameConfig {
         size: 12,
-        trajectories: 6,
+        // 9 a chunk: one group of the forward loop's side-by-side trajectories and one
+        // trajectory alone.
+        trajectories: 18,
         steps: 40,
         warmup: 3,
-        chunks: 3,
+        chunks: 2,
     }
 }
 
@@ -153,6 +158,47 @@ fn images_and_gradients_do_not_depend_on_the_thread_count() {
     let (i3, g3) = run(3);
     assert_eq!(i1, i3);
     assert_eq!(g1, g3);
+}
+
+#[test]
+fn instruction_sets_give_the_same_bits() {
+    // The AVX2+FMA loops (vector exponentials, 16-lane splat and gather runs) against the
+    // portable ones, footprints inside the image and across its border (size 24: the
+    // attractor spills over the edges).
+    if !Isa::Fma.is_available() {
+        eprintln!("this CPU has no AVX2+FMA: nothing to compare");
+        return;
+    }
+    let cfg = DiffFlameConfig {
+        size: 24,
+        trajectories: 30,
+        steps: 300,
+        warmup: 10,
+        chunks: 2,
+    };
+    let st = stack();
+    let order = GeneratorOrder::draw(&st, &cfg, 9);
+    let t = target(cfg.size);
+    let run = |isa: Isa| {
+        let f = forward_with_isa(&st, &cfg, &order, isa).unwrap();
+        let (_, g) = mse(&f.image, &t).unwrap();
+        let grad = backward_with_isa(&st, &cfg, &order, &f, &g, isa).unwrap();
+        (f.image, grad)
+    };
+    let (ia, ga) = run(Isa::Portable);
+    let (ib, gb) = run(Isa::Fma);
+    assert!(
+        ia.iter().any(|&v| v != ia[0]),
+        "a blank frame tests nothing"
+    );
+    assert_eq!(
+        ia.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+        ib.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+    );
+    assert_eq!(
+        ga.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+        gb.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+    );
 }
 
 #[test]

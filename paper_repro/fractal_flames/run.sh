@@ -4,7 +4,7 @@
 # variations), Fig. 6 (20² and 3 generators), Fig. 1 (Fighting Forms, Wisteria), Fig. 5
 # (50², 8 generators per flame) and Fig. 7 (Fighting Forms with other variations), each from
 # its config in configs/, plus flam3-render's picture of the learned .flame files when
-# flam3-render is installed. About 17 minutes on 2 cores after the build.
+# flam3-render is installed. About 22 minutes on 2 cores after the build.
 # Writes into results/ (or the folder given as the first argument).
 set -euo pipefail
 cd "$(dirname "$0")/../.."

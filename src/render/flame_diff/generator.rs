@@ -184,3 +184,79 @@ impl Generator {
             .expect("learnable generators are deterministic")
     }
 }
+
+/// The generators of a layer as the hot loops see them: the map of generator `g` and its
+/// vector–Jacobian product.
+pub(crate) trait Maps: Sync {
+    /// Generator `g` applied to `s`.
+    fn apply(&self, g: usize, s: [f64; 2]) -> [f64; 2];
+    /// [`Generator::vjp`] of generator `g`.
+    fn vjp(&self, g: usize, s: [f64; 2], lambda: [f64; 2], grad: &mut [f64]) -> [f64; 2];
+}
+
+impl Maps for [Generator] {
+    #[inline(always)]
+    fn apply(&self, g: usize, s: [f64; 2]) -> [f64; 2] {
+        self[g].apply(s)
+    }
+
+    #[inline(always)]
+    fn vjp(&self, g: usize, s: [f64; 2], lambda: [f64; 2], grad: &mut [f64]) -> [f64; 2] {
+        self[g].vjp(s, lambda, grad)
+    }
+}
+
+/// A layer whose generators are all affine maps (a lone `linear` variation, no post map:
+/// the paper's linear flames), as flat coefficients. The loops over such a layer hold no
+/// variation code, which leaves the compiler the registers for the splat; the arithmetic
+/// is [`Generator`]'s, operation for operation (the same bits).
+#[derive(Clone, Debug)]
+pub(crate) struct LinearMaps {
+    /// Pre-affine coefficients and the variation weight, per generator.
+    gens: Vec<([f64; 6], f64)>,
+    /// Whether the variation weights are learned (one θ entry after the coefficients).
+    weights: bool,
+}
+
+impl LinearMaps {
+    /// The layer's generators as affine maps, or `None` when one of them is not.
+    pub(crate) fn of(gens: &[Generator]) -> Option<Self> {
+        let lin = gens
+            .iter()
+            .map(|g| match (g.linear, g.is_linear()) {
+                (Some(w), true) => Some((g.coefs, w)),
+                _ => None,
+            })
+            .collect::<Option<Vec<_>>>()?;
+        Some(LinearMaps {
+            gens: lin,
+            weights: gens.first().is_some_and(|g| g.learn.weights),
+        })
+    }
+}
+
+impl Maps for LinearMaps {
+    #[inline(always)]
+    fn apply(&self, g: usize, s: [f64; 2]) -> [f64; 2] {
+        let (c, w) = &self.gens[g];
+        let (tx, ty) = affine(c, s[0], s[1]);
+        [w * tx, w * ty]
+    }
+
+    #[inline(always)]
+    fn vjp(&self, g: usize, s: [f64; 2], lambda: [f64; 2], grad: &mut [f64]) -> [f64; 2] {
+        let (c, w) = &self.gens[g];
+        if self.weights {
+            let (tx, ty) = affine(c, s[0], s[1]);
+            grad[6] += lambda[0] * tx + lambda[1] * ty;
+        }
+        let mu = [w * lambda[0], w * lambda[1]];
+        grad[0] += mu[0] * s[0];
+        grad[1] += mu[1] * s[0];
+        grad[2] += mu[0] * s[1];
+        grad[3] += mu[1] * s[1];
+        grad[4] += mu[0];
+        grad[5] += mu[1];
+        [c[0] * mu[0] + c[1] * mu[1], c[2] * mu[0] + c[3] * mu[1]]
+    }
+}
