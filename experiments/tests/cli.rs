@@ -563,11 +563,33 @@ fn sdf_fit_and_render_end_to_end() {
     assert!(ok, "{msg}");
     let log = std::fs::read_to_string(p("crossed/log.csv")).unwrap();
     assert!(
-        log.starts_with("iter,loss,pixel,distance,crossing,"),
+        log.starts_with("iter,loss,pixel,distance,crossing,scale_barrier,"),
         "{log}"
     );
     let (ok, msg) = fit("5", &["--crossing-weight=-1"]);
     assert!(!ok && msg.contains("loss.crossing"), "{msg}");
+    // The scale barrier likewise.
+    let (target, barrier_out) = (p("k.png"), p("barrier"));
+    let (ok, msg) = ifslab(&[
+        "sdf",
+        "fit",
+        &target,
+        "--size",
+        "64",
+        "--depth",
+        "4",
+        "--iterations",
+        "5",
+        "--scale-barrier",
+        "10",
+        "--max-scale",
+        "0.8",
+        "-o",
+        &barrier_out,
+    ]);
+    assert!(ok, "{msg}");
+    let (ok, msg) = fit("5", &["--scale-barrier", "10", "--max-scale", "1.5"]);
+    assert!(!ok && msg.contains("loss.max_scale"), "{msg}");
     // Bad input.
     std::fs::write(
         p("bad.json"),

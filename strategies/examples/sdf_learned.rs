@@ -3,35 +3,27 @@
 //! several logit settings. Counts how many fits recover the Koch pattern's assignment (the
 //! same four maps, up to pair order, the order of a map's two endpoints and the curve's
 //! reversal) and its points (every point within 1e-2), and how many fail with a degenerate
-//! or non-contractive soft map. Prints one CSV row per fit and a summary per setting.
+//! or non-contractive soft map (without a scale barrier; with one, expanding soft maps are
+//! drawn and penalised instead). Prints one CSV row per fit and a summary per setting.
 //!
 //! `cargo run --profile ci -p ifslab-strategies --example sdf_learned -- [--seeds N]`
 
 use std::time::Instant;
 
-use ifslab::model::segment::{Pattern, SegmentMap, builtin};
-use ifslab::render::sdf::{SdfRaster, SdfRenderConfig, SdfView};
+use ifslab::model::segment::Pattern;
 use ifslab_strategies::optim::adam::AdamConfig;
 use ifslab_strategies::problems::image::StrategyConfig;
 use ifslab_strategies::problems::sdf::{LearnedConfig, SdfConfig, SdfInit, run_sdf};
+
+mod common;
+use common::{iou, koch_truth};
 
 const SIZE: usize = 64;
 const DEPTH: usize = 4;
 const SIGMA: f64 = 1.5;
 
-fn koch_truth() -> Pattern {
-    let to = SegmentMap::between([0.0, 0.0], [1.0, 0.0], [0.15, 0.4], [0.85, 0.4]).unwrap();
-    builtin("koch").unwrap().transformed(&to).unwrap()
-}
-
 fn render(p: &Pattern) -> Vec<f64> {
-    let rc = SdfRenderConfig {
-        depth: DEPTH,
-        cutoff: None,
-    };
-    SdfRaster::render(p, &SdfView::unit_square(SIZE), &rc)
-        .unwrap()
-        .image(SIGMA)
+    common::render(p, SIZE, DEPTH, SIGMA)
 }
 
 /// Pairs as a sorted list of `(source, target)` with the source's first index the smaller,
@@ -76,16 +68,42 @@ fn main() {
     let n = truth.points().len();
     let truth_theta = truth.flat_points();
     let target = render(&truth);
+    // (name, bias, noise, τ start, τ end, scale barrier weight)
     let settings = [
-        ("uniform prior, τ 1", 0.0, 1.0, 1.0, 1.0),
-        ("uniform prior, τ 1 → 0.05", 0.0, 1.0, 1.0, 0.05),
-        ("uniform prior, τ 0.3 → 0.02", 0.0, 1.0, 0.3, 0.02),
-        ("bias 2 to Koch, τ 1 → 0.05", 2.0, 1.0, 1.0, 0.05),
-        ("bias 4 to Koch, τ 1 → 0.05", 4.0, 1.0, 1.0, 0.05),
+        ("uniform prior, τ 1", 0.0, 1.0, 1.0, 1.0, 0.0),
+        ("uniform prior, τ 1 → 0.05", 0.0, 1.0, 1.0, 0.05, 0.0),
+        ("uniform prior, τ 0.3 → 0.02", 0.0, 1.0, 0.3, 0.02, 0.0),
+        ("bias 2 to Koch, τ 1 → 0.05", 2.0, 1.0, 1.0, 0.05, 0.0),
+        ("bias 4 to Koch, τ 1 → 0.05", 4.0, 1.0, 1.0, 0.05, 0.0),
+        (
+            "uniform prior, τ 1 → 0.05, barrier 1",
+            0.0,
+            1.0,
+            1.0,
+            0.05,
+            1.0,
+        ),
+        (
+            "uniform prior, τ 1 → 0.05, barrier 100",
+            0.0,
+            1.0,
+            1.0,
+            0.05,
+            100.0,
+        ),
+        ("uniform prior, τ 1, barrier 100", 0.0, 1.0, 1.0, 1.0, 100.0),
+        (
+            "bias 2 to Koch, τ 1 → 0.05, barrier 100",
+            2.0,
+            1.0,
+            1.0,
+            0.05,
+            100.0,
+        ),
     ];
-    println!("setting,seed,outcome,assignment,point_error,iou,seconds");
+    println!("setting,seed,outcome,assignment,point_error,iou,soft_iou,seconds");
     let mut summary = Vec::new();
-    for (name, bias, noise, t0, t1) in settings {
+    for (name, bias, noise, t0, t1, barrier) in settings {
         let (mut assign, mut points, mut failed) = (0, 0, 0);
         let clock = Instant::now();
         for seed in 0..seeds {
@@ -110,12 +128,13 @@ fn main() {
                 bias,
                 noise,
             });
+            cfg.loss.scale_barrier = barrier;
             let t = Instant::now();
             match run_sdf(&cfg, target.clone(), dir.path(), false, vec![]) {
                 Err(e) => {
                     failed += 1;
                     let msg = e.to_string().replace(',', ";");
-                    println!("{name},{seed},failed: {msg},,,,");
+                    println!("\"{name}\",{seed},failed: {msg},,,,,");
                 }
                 Ok(out) => {
                     let secs = t.elapsed().as_secs_f64();
@@ -133,20 +152,18 @@ fn main() {
                     };
                     let (d, r) = point_error(&out.theta, &truth_theta);
                     let err = d.min(r);
-                    let q = fit.as_ref().map_or(0.0, |f| {
-                        let img = render(f);
-                        let (mut i, mut u) = (0usize, 0usize);
-                        for (x, y) in img.iter().zip(&target) {
-                            i += (*x > 0.5 && *y > 0.5) as usize;
-                            u += (*x > 0.5 || *y > 0.5) as usize;
-                        }
-                        i as f64 / u.max(1) as f64
-                    });
+                    let q = fit.as_ref().map_or(0.0, |f| iou(&render(f), &target));
+                    // The soft pattern the loss saw at the end (final τ), before the
+                    // arg-max readout.
+                    let learned = problem.learned().unwrap();
+                    let q_soft = learned
+                        .soft_pattern(&out.theta, learned.temperature_at(u64::MAX), barrier > 0.0)
+                        .map_or(0.0, |p| iou(&render(&p), &target));
                     assign += ok_assign as usize;
                     let ok_points = ok_assign && err < 1e-2;
                     points += ok_points as usize;
                     println!(
-                        "{name},{seed},{},{ok_assign},{err:.4},{q:.3},{secs:.2}",
+                        "\"{name}\",{seed},{},{ok_assign},{err:.4},{q:.3},{q_soft:.3},{secs:.2}",
                         if fit.is_some() {
                             "ran"
                         } else {

@@ -7,7 +7,8 @@
 //! and those with IoU ≥ 0.95 of the ink above ½. Prints one CSV row per fit and a summary per
 //! setting; with `--gallery DIR`, writes one PNG per setting: for each seed, the start above
 //! the fit (white ink on black). The CSV rows also give the crossing penalty (words of
-//! length 3) of the start and of the fit.
+//! length 3) of the start and of the fit. `--sigma-start S` draws with a width shrinking from
+//! S pixels to the final 1.5 over the fit (coarse to fine).
 //!
 //! ```text
 //! cargo run --profile ci -p ifslab-strategies --example sdf_seeds -- \
@@ -17,14 +18,14 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use ifslab::model::segment::{Pattern, SegmentMap, builtin};
-use ifslab::render::image_io::{BitDepth, save_grey_png};
-use ifslab::render::sdf::{SdfRaster, SdfRenderConfig, SdfView};
 use ifslab_strategies::optim::adam::AdamConfig;
 use ifslab_strategies::problems::image::StrategyConfig;
 use ifslab_strategies::problems::sdf::{
     SdfConfig, SdfInit, SdfLossConfig, crossing_penalty, run_sdf,
 };
+
+mod common;
+use common::{iou, koch_truth, render, save_gallery};
 
 struct Args {
     seeds: u64,
@@ -34,6 +35,7 @@ struct Args {
     depth: usize,
     iterations: u64,
     crossing_depth: usize,
+    sigma_start: Option<f64>,
     gallery: Option<PathBuf>,
 }
 
@@ -56,6 +58,7 @@ fn parse_args() -> Args {
         depth: 4,
         iterations: 400,
         crossing_depth: 1,
+        sigma_start: None,
         gallery: None,
     };
     let mut it = std::env::args().skip(1);
@@ -73,32 +76,19 @@ fn parse_args() -> Args {
             "--depth" => a.depth = num(&v) as usize,
             "--iterations" => a.iterations = num(&v),
             "--crossing-depth" => a.crossing_depth = num(&v) as usize,
+            "--sigma-start" => {
+                a.sigma_start = Some(
+                    v.parse()
+                        .unwrap_or_else(|e| panic!("{flag}: `{v}` is not a number ({e})")),
+                )
+            }
             "--gallery" => a.gallery = Some(PathBuf::from(v)),
             other => panic!(
-                "unknown flag {other}; flags: --seeds --jitters --weights --size --depth --iterations --crossing-depth --gallery"
+                "unknown flag {other}; flags: --seeds --jitters --weights --size --depth --iterations --crossing-depth --sigma-start --gallery"
             ),
         }
     }
     a
-}
-
-/// The Koch curve from (0.15, 0.4) to (0.85, 0.4) in the unit square (as the tests).
-fn koch_truth() -> Pattern {
-    let to = SegmentMap::between([0.0, 0.0], [1.0, 0.0], [0.15, 0.4], [0.85, 0.4]).unwrap();
-    builtin("koch").unwrap().transformed(&to).unwrap()
-}
-
-fn render(p: &Pattern, size: usize, depth: usize, sigma: f64) -> Vec<f64> {
-    SdfRaster::render(
-        p,
-        &SdfView::unit_square(size),
-        &SdfRenderConfig {
-            depth,
-            cutoff: None,
-        },
-    )
-    .unwrap()
-    .image(sigma)
 }
 
 /// Largest coordinate error up to the reversal symmetry of the Koch pattern.
@@ -112,16 +102,6 @@ fn koch_error(theta: &[f64], truth: &[f64]) -> f64 {
         .map(|(i, c)| (theta[2 * i + c] - truth[2 * (n - 1 - i) + c]).abs())
         .fold(0.0, f64::max);
     direct.min(reversed)
-}
-
-fn iou(a: &[f64], b: &[f64]) -> f64 {
-    let (mut i, mut u) = (0usize, 0usize);
-    for (x, y) in a.iter().zip(b) {
-        let (x, y) = (*x > 0.5, *y > 0.5);
-        i += (x && y) as usize;
-        u += (x || y) as usize;
-    }
-    if u == 0 { 1.0 } else { i as f64 / u as f64 }
 }
 
 fn main() {
@@ -143,6 +123,7 @@ fn main() {
                 cfg.size = args.size;
                 cfg.depth = args.depth;
                 cfg.sigma = sigma;
+                cfg.sigma_start = args.sigma_start;
                 cfg.iterations = args.iterations;
                 cfg.checkpoint_every = 0;
                 cfg.seed = seed;
@@ -196,27 +177,8 @@ fn main() {
             ));
             if let Some(g) = &args.gallery {
                 // Seeds side by side: start in the top half, fit in the bottom half.
-                let (n, h) = (args.size, 2 * args.size);
-                let cols = tiles.len();
-                let mut px = vec![0f32; cols * n * h];
-                for (c, tile) in tiles.iter().enumerate() {
-                    for r in 0..h {
-                        for x in 0..n {
-                            px[r * cols * n + c * n + x] = tile[r * n + x] as f32;
-                        }
-                    }
-                }
-                std::fs::create_dir_all(g).unwrap();
                 let path = g.join(format!("koch_seeds_jitter{jitter}_crossing{weight}.png"));
-                save_grey_png(
-                    &path,
-                    &px,
-                    (cols * n) as u32,
-                    h as u32,
-                    BitDepth::Eight,
-                    false,
-                )
-                .unwrap();
+                save_gallery(&path, &tiles, args.size, 2 * args.size);
             }
         }
     }

@@ -79,6 +79,54 @@ fn logit_and_point_gradients_match_central_differences() {
 }
 
 #[test]
+fn the_scale_barrier_lets_expanding_soft_maps_through_with_an_exact_gradient() {
+    // No prior on the assignment: the soft endpoints are averages of the points, and some
+    // soft map expands. Without a barrier the pattern is refused; with one it is drawn and
+    // the barrier's gradient joins the loss's.
+    let cfg = LearnedConfig {
+        temperature: 1.0,
+        temperature_end: 1.0,
+        bias: 0.0,
+        noise: 1.0,
+    };
+    let pts = koch_truth().flat_points();
+    let refused = problem(cfg.clone(), SdfLossConfig::default());
+    let theta = refused.learned().unwrap().start(&pts, 1).unwrap();
+    let e = refused
+        .eval_at(&theta, true, 2.0, 1.0)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("not contractive"), "{e}");
+    let p = problem(
+        cfg,
+        SdfLossConfig {
+            scale_barrier: 10.0,
+            max_scale: 0.8,
+            ..SdfLossConfig::default()
+        },
+    );
+    let ev = p.eval_at(&theta, true, 2.0, 1.0).unwrap();
+    assert!(
+        ev.scale_barrier > 0.0,
+        "this start has an expanding soft map"
+    );
+    let g = ev.grad.unwrap();
+    let scale = g.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+    let h = 1e-6;
+    let mut worst: f64 = 0.0;
+    for k in 0..theta.len() {
+        let (mut up, mut down) = (theta.clone(), theta.clone());
+        up[k] += h;
+        down[k] -= h;
+        let fd = (p.eval_at(&up, false, 2.0, 1.0).unwrap().loss
+            - p.eval_at(&down, false, 2.0, 1.0).unwrap().loss)
+            / (2.0 * h);
+        worst = worst.max((fd - g[k]).abs());
+    }
+    assert!(worst < 1e-4 * scale, "worst {worst:e} of scale {scale:e}");
+}
+
+#[test]
 fn a_biased_start_is_the_patterns_own_assignment_and_renders_it() {
     let cfg = LearnedConfig {
         temperature: 1.0,
@@ -96,7 +144,7 @@ fn a_biased_start_is_the_patterns_own_assignment_and_renders_it() {
     assert!((l.temperature_at(0) - 1.0).abs() < 1e-12);
     assert!((l.temperature_at(100) - 0.05).abs() < 1e-12);
     assert!((l.temperature_at(50) - 0.05f64.sqrt()).abs() < 1e-12);
-    let soft = l.soft_pattern(&theta, 0.05).unwrap();
+    let soft = l.soft_pattern(&theta, 0.05, false).unwrap();
     let hard = p.pattern_at(&theta).unwrap();
     for (a, b) in soft.maps().unwrap().iter().zip(hard.maps().unwrap()) {
         let (x, y) = (a.apply([0.3, 0.7]), b.apply([0.3, 0.7]));

@@ -65,6 +65,12 @@ pub struct FitArgs {
     /// Length of the words whose copies the crossing penalty compares (1–3).
     #[arg(long, default_value_t = 1)]
     pub crossing_depth: usize,
+    /// Weight of the barrier on map scales above --max-scale (0: off; keeps the fit an IFS).
+    #[arg(long, default_value_t = 0.0)]
+    pub scale_barrier: f64,
+    /// The scale above which the barrier acts, in (0, 1).
+    #[arg(long, default_value_t = 0.9)]
+    pub max_scale: f64,
     /// Where the points start: line (the paper's best-fit line), pattern, given.
     #[arg(long, default_value = "line")]
     pub init: String,
@@ -120,6 +126,8 @@ fn fit(a: FitArgs) -> anyhow::Result<()> {
     cfg.loss.distance = a.distance_weight;
     cfg.loss.crossing = a.crossing_weight;
     cfg.loss.crossing_depth = a.crossing_depth;
+    cfg.loss.scale_barrier = a.scale_barrier;
+    cfg.loss.max_scale = a.max_scale;
     cfg.init.kind = match a.init.as_str() {
         "line" => SdfInit::Line,
         "pattern" => SdfInit::Pattern,

@@ -85,6 +85,30 @@ impl Pattern {
         pairs: Vec<Pair>,
         base: Option<BaseFigure>,
     ) -> Result<Self> {
+        let p = Pattern::new_any_scale(name, points, pairs, base)?;
+        for (i, m) in p.maps()?.iter().enumerate() {
+            let s = m.scale();
+            if s >= 1.0 {
+                let pr = p.pairs[i];
+                return Err(Error::Pattern(format!(
+                    "map {i} (pair {i}: {:?} → {:?}) is not contractive: its scale is {s:.6} (must be < 1); \
+                     the target segment must be shorter than the source segment",
+                    pr.source, pr.target
+                )));
+            }
+        }
+        Ok(p)
+    }
+
+    /// [`Pattern::new`] without the contractivity check: for an optimiser's intermediate
+    /// patterns (as [`Pattern::with_flat_points`]), which the renderer draws to a finite
+    /// depth whatever their scales.
+    pub fn new_any_scale(
+        name: impl Into<String>,
+        points: Vec<[f64; 2]>,
+        pairs: Vec<Pair>,
+        base: Option<BaseFigure>,
+    ) -> Result<Self> {
         if points.is_empty() {
             return Err(Error::Pattern("the pattern has no control points".into()));
         }
@@ -122,17 +146,6 @@ impl Pattern {
             base,
         };
         p.check_points(&p.points)?;
-        for (i, m) in p.maps()?.iter().enumerate() {
-            let s = m.scale();
-            if s >= 1.0 {
-                let pr = p.pairs[i];
-                return Err(Error::Pattern(format!(
-                    "map {i} (pair {i}: {:?} → {:?}) is not contractive: its scale is {s:.6} (must be < 1); \
-                     the target segment must be shorter than the source segment",
-                    pr.source, pr.target
-                )));
-            }
-        }
         Ok(p)
     }
 

@@ -139,13 +139,7 @@ impl Generator {
             }
             (mu, v)
         };
-        // Pre-affine: t = (a·x + c·y + e, b·x + d·y + f).
-        grad[0] += mu[0] * s[0];
-        grad[1] += mu[1] * s[0];
-        grad[2] += mu[0] * s[1];
-        grad[3] += mu[1] * s[1];
-        grad[4] += mu[0];
-        grad[5] += mu[1];
+        let lam_s = pre_affine_vjp(c, s, mu, grad);
         if self.learn.post {
             grad[k] += lambda[0] * v[0];
             grad[k + 1] += lambda[1] * v[0];
@@ -154,7 +148,7 @@ impl Generator {
             grad[k + 4] += lambda[0];
             grad[k + 5] += lambda[1];
         }
-        [c[0] * mu[0] + c[1] * mu[1], c[2] * mu[0] + c[3] * mu[1]]
+        lam_s
     }
 
     /// The general path for variations that read the pre-affine coefficients.
@@ -250,13 +244,19 @@ impl Maps for LinearMaps {
             let (tx, ty) = affine(c, s[0], s[1]);
             grad[6] += lambda[0] * tx + lambda[1] * ty;
         }
-        let mu = [w * lambda[0], w * lambda[1]];
-        grad[0] += mu[0] * s[0];
-        grad[1] += mu[1] * s[0];
-        grad[2] += mu[0] * s[1];
-        grad[3] += mu[1] * s[1];
-        grad[4] += mu[0];
-        grad[5] += mu[1];
-        [c[0] * mu[0] + c[1] * mu[1], c[2] * mu[0] + c[3] * mu[1]]
+        pre_affine_vjp(c, s, [w * lambda[0], w * lambda[1]], grad)
     }
+}
+
+/// The pre-affine map `t = (a·x + c·y + e, b·x + d·y + f)` in reverse: adds `μ`'s products
+/// with `(s, 1)` to the six coefficients' entries `grad[0..6]` and returns `(∂t/∂s)ᵀ·μ`.
+#[inline(always)]
+fn pre_affine_vjp(c: &Coefs, s: [f64; 2], mu: [f64; 2], grad: &mut [f64]) -> [f64; 2] {
+    grad[0] += mu[0] * s[0];
+    grad[1] += mu[1] * s[0];
+    grad[2] += mu[0] * s[1];
+    grad[3] += mu[1] * s[1];
+    grad[4] += mu[0];
+    grad[5] += mu[1];
+    [c[0] * mu[0] + c[1] * mu[1], c[2] * mu[0] + c[3] * mu[1]]
 }

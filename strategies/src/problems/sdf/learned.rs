@@ -9,6 +9,11 @@
 //! `bias` on the pattern's own assignment plus seeded Gaussian noise of deviation `noise`.
 //! The fitted pattern is read back with the hard assignment (arg-max of each endpoint's
 //! logits).
+//!
+//! Soft endpoints make arbitrary segment lengths, so a soft map may stop contracting. By
+//! default such a pattern is refused (the fit stops with an error naming the map); with the
+//! loss's scale barrier on (`[loss] scale_barrier`, [`super::barrier`]) it is drawn all the
+//! same and the barrier pushes its scale back down.
 
 use ifslab::model::segment::{BaseFigure, Pair, Pattern};
 use rand::SeedableRng;
@@ -212,8 +217,8 @@ impl LearnedPattern {
     /// The soft pattern at θ and temperature τ: the control points followed by the
     /// endpoints, pair `i` taking points `n+4i, n+4i+1` onto `n+4i+2, n+4i+3`; the base
     /// figure stays on the control points. Errors as [`Pattern::new`] when the soft maps
-    /// degenerate or stop contracting.
-    pub fn soft_pattern(&self, theta: &[f64], tau: f64) -> Result<Pattern> {
+    /// degenerate or, unless `any_scale` (the loss has a scale barrier), stop contracting.
+    pub fn soft_pattern(&self, theta: &[f64], tau: f64, any_scale: bool) -> Result<Pattern> {
         self.check(theta)?;
         let n = self.n();
         let mut pts: Vec<[f64; 2]> = (0..n).map(|k| [theta[2 * k], theta[2 * k + 1]]).collect();
@@ -233,7 +238,11 @@ impl LearnedPattern {
             })
             .collect();
         let base: BaseFigure = self.pattern.base();
-        Ok(Pattern::new(self.pattern.name(), pts, pairs, Some(base))?)
+        Ok(if any_scale {
+            Pattern::new_any_scale(self.pattern.name(), pts, pairs, Some(base))?
+        } else {
+            Pattern::new(self.pattern.name(), pts, pairs, Some(base))?
+        })
     }
 
     /// Chain rule: ∂loss/∂(soft pattern's points) → ∂loss/∂θ.

@@ -8,6 +8,8 @@
 //!   gradient;
 //! - [`crossing`]: the penalty on copies of the base figure crossing each other (the
 //!   barrier the paper proposes against the local optima of its Fig. 4 and 7);
+//! - [`barrier`]: the barrier on the maps' scales (keeps a fit an IFS; lets learned soft
+//!   maps that expand through);
 //! - [`mod@landscape`]: the loss on a 2-D slice of control-point space (`ifslab landscape`);
 //! - [`config`]: the validated TOML configuration (`problem = "sdf"`);
 //! - [`run`]: start, solver, executor, resume.
@@ -16,6 +18,7 @@
 //! - Scott, *Differentiable Iterated Function Systems*, Differentiable Almost Everything
 //!   workshop, ICML 2024.
 
+pub mod barrier;
 pub mod config;
 pub mod crossing;
 pub mod init;
@@ -25,6 +28,7 @@ pub mod problem;
 pub mod run;
 pub mod target;
 
+pub use barrier::scale_barrier;
 pub use config::{SdfConfig, SdfInitConfig};
 pub use crossing::{MAX_CROSSING_DEPTH, crossing_depth2, crossing_penalty};
 pub use init::{SdfInit, initial_points};

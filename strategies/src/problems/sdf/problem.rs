@@ -17,12 +17,13 @@ use serde::{Deserialize, Serialize};
 use crate::driver::{Differentiable, Evaluation};
 use crate::error::{Error, Result};
 use crate::optim::annealing::Anneal;
+use crate::problems::sdf::barrier::scale_barrier;
 use crate::problems::sdf::crossing::{MAX_CROSSING_DEPTH, crossing_penalty};
 use crate::problems::sdf::learned::{LearnedConfig, LearnedPattern};
 use crate::problems::sdf::target::distance_transform;
 
 /// Names of the logged loss terms, in column order.
-pub const SDF_TERMS: [&str; 3] = ["pixel", "distance", "crossing"];
+pub const SDF_TERMS: [&str; 4] = ["pixel", "distance", "crossing", "scale_barrier"];
 
 /// Pixels beyond this many σ contribute less than `e^{−36} ≈ 2.3e-16` and are not computed
 /// when the loss has no distance term.
@@ -45,6 +46,25 @@ pub struct SdfLossConfig {
     /// Length of the words whose copies of the base figure the crossing penalty compares
     /// (1: one copy per map).
     pub crossing_depth: usize,
+    /// Weight of the barrier on the maps' scales above `max_scale` (0: off; see
+    /// [`crate::problems::sdf::barrier`]). With learned pairs it also lets soft maps that
+    /// expand be drawn instead of refused.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub scale_barrier: f64,
+    /// The scale above which the barrier acts, in (0, 1).
+    #[serde(skip_serializing_if = "is_default_max_scale")]
+    pub max_scale: f64,
+}
+
+/// The barrier's threshold unless configured.
+const DEFAULT_MAX_SCALE: f64 = 0.9;
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
+}
+
+fn is_default_max_scale(v: &f64) -> bool {
+    *v == DEFAULT_MAX_SCALE
 }
 
 impl Default for SdfLossConfig {
@@ -55,6 +75,8 @@ impl Default for SdfLossConfig {
             levels: 4,
             crossing: 0.0,
             crossing_depth: 1,
+            scale_barrier: 0.0,
+            max_scale: DEFAULT_MAX_SCALE,
         }
     }
 }
@@ -66,6 +88,7 @@ impl SdfLossConfig {
             ("loss.pixel", self.pixel),
             ("loss.distance", self.distance),
             ("loss.crossing", self.crossing),
+            ("loss.scale_barrier", self.scale_barrier),
         ] {
             if !(w.is_finite() && w >= 0.0) {
                 return Err(Error::param(
@@ -78,6 +101,15 @@ impl SdfLossConfig {
             return Err(Error::param(
                 "loss",
                 "at least one of `pixel` and `distance` must be > 0",
+            ));
+        }
+        if !(self.max_scale > 0.0 && self.max_scale < 1.0) {
+            return Err(Error::param(
+                "loss.max_scale",
+                format!(
+                    "must lie in (0, 1) (the scale below which the barrier is silent), got {}",
+                    self.max_scale
+                ),
             ));
         }
         if !(1..=MAX_CROSSING_DEPTH).contains(&self.crossing_depth) {
@@ -121,6 +153,8 @@ pub struct SdfEval {
     pub distance: f64,
     /// Unweighted self-crossing penalty (0 when its weight is 0: not computed).
     pub crossing: f64,
+    /// Unweighted scale barrier (0 when its weight is 0: not computed).
+    pub scale_barrier: f64,
     /// ∂loss/∂θ, when asked for.
     pub grad: Option<Vec<f64>>,
 }
@@ -283,7 +317,7 @@ impl SdfProblem {
     /// `tau`, and the gradient when `grad`.
     pub fn eval_at(&self, theta: &[f64], grad: bool, sigma: f64, tau: f64) -> Result<SdfEval> {
         let p = match &self.learned {
-            Some(l) => l.soft_pattern(theta, tau)?,
+            Some(l) => l.soft_pattern(theta, tau, self.loss.scale_barrier > 0.0)?,
             None => self.pattern.with_flat_points(theta)?,
         };
         let render = SdfRenderConfig {
@@ -299,6 +333,7 @@ impl SdfProblem {
             pixel: 0.0,
             distance: 0.0,
             crossing: 0.0,
+            scale_barrier: 0.0,
             grad: None,
         };
         if self.loss.pixel > 0.0 {
@@ -323,6 +358,13 @@ impl SdfProblem {
                 }
             }
         }
+        let mut g_barrier = None;
+        if self.loss.scale_barrier > 0.0 {
+            let (v, g) = scale_barrier(&p, self.loss.max_scale)?;
+            out.scale_barrier = v;
+            out.loss += self.loss.scale_barrier * v;
+            g_barrier = Some(g);
+        }
         let mut g_cross = None;
         if self.loss.crossing > 0.0 {
             let (v, g) = crossing_penalty(&p, self.loss.crossing_depth, grad)?;
@@ -341,6 +383,11 @@ impl SdfProblem {
             if let Some(gc) = g_cross {
                 for (x, c) in g.iter_mut().zip(gc) {
                     *x += self.loss.crossing * c;
+                }
+            }
+            if let Some(gb) = g_barrier {
+                for (x, b) in g.iter_mut().zip(gb) {
+                    *x += self.loss.scale_barrier * b;
                 }
             }
             out.grad = Some(match &self.learned {
@@ -367,6 +414,7 @@ impl Differentiable for SdfProblem {
                 (SDF_TERMS[0], e.pixel),
                 (SDF_TERMS[1], e.distance),
                 (SDF_TERMS[2], e.crossing),
+                (SDF_TERMS[3], e.scale_barrier),
             ],
         })
     }
