@@ -54,6 +54,12 @@ done
 "$T/examples/sdf_seeds" --seeds 10 --jitters 0.06,0.1 --weights 100 --crossing-depth 3 \
   > "$OUT/koch_seeds_depth3.csv"
 
+# Coarse to fine against the same local optima: σ from 6 px to 1.5 over the first 200 of the
+# 400 steps.
+"$T/examples/sdf_seeds" --seeds 10 --jitters 0.03,0.06,0.1 --weights 0 --sigma-start 6 \
+  --sigma-iterations 200 --gallery "$OUT/gallery/coarse_to_fine" \
+  > "$OUT/koch_seeds_coarse_to_fine.csv"
+
 # Supplementary Fig. 5: the Koch pattern fitted to a filled square, seeds 0-7, without and
 # with the barrier on the maps' scales.
 "$T/examples/sdf_unit_square" --seeds 8 --gallery "$OUT/gallery/unit_square.png" \

@@ -8,7 +8,8 @@
 //! setting; with `--gallery DIR`, writes one PNG per setting: for each seed, the start above
 //! the fit (white ink on black). The CSV rows also give the crossing penalty (words of
 //! length 3) of the start and of the fit. `--sigma-start S` draws with a width shrinking from
-//! S pixels to the final 1.5 over the fit (coarse to fine).
+//! S pixels to the final 1.5 over the fit (coarse to fine), or over its first
+//! `--sigma-iterations K` steps.
 //!
 //! ```text
 //! cargo run --profile ci -p ifslab-strategies --example sdf_seeds -- \
@@ -36,6 +37,7 @@ struct Args {
     iterations: u64,
     crossing_depth: usize,
     sigma_start: Option<f64>,
+    sigma_iterations: Option<u64>,
     gallery: Option<PathBuf>,
 }
 
@@ -59,6 +61,7 @@ fn parse_args() -> Args {
         iterations: 400,
         crossing_depth: 1,
         sigma_start: None,
+        sigma_iterations: None,
         gallery: None,
     };
     let mut it = std::env::args().skip(1);
@@ -82,9 +85,10 @@ fn parse_args() -> Args {
                         .unwrap_or_else(|e| panic!("{flag}: `{v}` is not a number ({e})")),
                 )
             }
+            "--sigma-iterations" => a.sigma_iterations = Some(num(&v)),
             "--gallery" => a.gallery = Some(PathBuf::from(v)),
             other => panic!(
-                "unknown flag {other}; flags: --seeds --jitters --weights --size --depth --iterations --crossing-depth --sigma-start --gallery"
+                "unknown flag {other}; flags: --seeds --jitters --weights --size --depth --iterations --crossing-depth --sigma-start --sigma-iterations --gallery"
             ),
         }
     }
@@ -124,6 +128,7 @@ fn main() {
                 cfg.depth = args.depth;
                 cfg.sigma = sigma;
                 cfg.sigma_start = args.sigma_start;
+                cfg.sigma_iterations = args.sigma_iterations;
                 cfg.iterations = args.iterations;
                 cfg.checkpoint_every = 0;
                 cfg.seed = seed;

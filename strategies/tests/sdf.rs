@@ -3,6 +3,8 @@
 //! control points from the paper's best-fit-line start; a resumed fit is bit-identical to an
 //! uninterrupted one.
 
+use std::path::Path;
+
 use ifslab::model::segment::{Pattern, SegmentMap, builtin};
 use ifslab::render::sdf::{SdfRaster, SdfRenderConfig, SdfView};
 use ifslab_strategies::driver::Differentiable;
@@ -277,4 +279,34 @@ fn the_landscape_through_the_true_points_has_its_minimum_at_the_centre() {
     // A θ of the wrong length is refused.
     let lc = LandscapeConfig::default();
     assert!(sdf_landscape(&problem, &truth[..4], &lc, &|| {}).is_err());
+}
+
+#[test]
+fn a_coarse_to_fine_schedule_over_part_of_the_run_is_checked() {
+    let base = "target = \"t.png\"\npattern = \"koch\"\niterations = 400\n";
+    for (extra, want) in [
+        ("sigma_iterations = 200\n", "needs sigma_start"),
+        (
+            "sigma_start = 6.0\nsigma_iterations = 0\n",
+            "between 1 and iterations",
+        ),
+        (
+            "sigma_start = 6.0\nsigma_iterations = 401\n",
+            "between 1 and iterations",
+        ),
+    ] {
+        let e = SdfConfig::from_toml(&format!("{base}{extra}"), Path::new("c.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("sigma_iterations") && e.contains(want),
+            "{extra}: {e}"
+        );
+    }
+    let ok = SdfConfig::from_toml(
+        &format!("{base}sigma_start = 6.0\nsigma_iterations = 200\n"),
+        Path::new("c.toml"),
+    )
+    .unwrap();
+    assert_eq!(ok.sigma_iterations, Some(200));
 }

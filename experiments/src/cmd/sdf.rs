@@ -47,6 +47,9 @@ pub struct FitArgs {
     /// Coarse to fine: σ at the first iteration, shrinking geometrically to --sigma.
     #[arg(long)]
     pub sigma_start: Option<f64>,
+    /// Iterations over which σ shrinks from --sigma-start (default: all of them).
+    #[arg(long)]
+    pub sigma_iterations: Option<u64>,
     /// 2×2 poolings of the multi-scale MSE after the full-resolution level.
     #[arg(long, default_value_t = 4)]
     pub levels: usize,
@@ -120,6 +123,7 @@ fn fit(a: FitArgs) -> anyhow::Result<()> {
     cfg.size = a.size;
     cfg.sigma = a.sigma;
     cfg.sigma_start = a.sigma_start;
+    cfg.sigma_iterations = a.sigma_iterations;
     cfg.loss.levels = a.levels;
     cfg.iterations = a.iterations;
     cfg.seed = a.seed;

@@ -55,6 +55,10 @@ pub struct SdfConfig {
     /// last (absent: `sigma` throughout, as the paper).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sigma_start: Option<f64>,
+    /// Iterations over which σ shrinks from `sigma_start` (absent: all of them); the rest
+    /// run at `sigma`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma_iterations: Option<u64>,
     /// Optimisation iterations.
     #[serde(default = "default_iterations")]
     pub iterations: u64,
@@ -118,6 +122,7 @@ impl SdfConfig {
             depth: default_depth(),
             sigma: default_sigma(),
             sigma_start: None,
+            sigma_iterations: None,
             iterations: default_iterations(),
             seed: 0,
             checkpoint_every: default_checkpoint_every(),
@@ -198,6 +203,23 @@ impl SdfConfig {
                 "sigma_start",
                 format!("must be > 0 pixels, got {s0}"),
             ));
+        }
+        if let Some(k) = self.sigma_iterations {
+            if self.sigma_start.is_none() {
+                return Err(Error::param(
+                    "sigma_iterations",
+                    "needs sigma_start (the width the schedule starts from)",
+                ));
+            }
+            if k == 0 || k > self.iterations {
+                return Err(Error::param(
+                    "sigma_iterations",
+                    format!(
+                        "must be between 1 and iterations ({}), got {k}",
+                        self.iterations
+                    ),
+                ));
+            }
         }
         if !(self.init.jitter.is_finite() && self.init.jitter >= 0.0) {
             return Err(Error::param(

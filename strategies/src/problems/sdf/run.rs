@@ -49,7 +49,7 @@ pub fn sdf_problem(cfg: &SdfConfig, target: Vec<f64>) -> Result<SdfProblem> {
         None => p,
     };
     match cfg.sigma_start {
-        Some(s0) => p.with_sigma_schedule(s0, cfg.iterations),
+        Some(s0) => p.with_sigma_schedule(s0, cfg.sigma_iterations.unwrap_or(cfg.iterations)),
         None => Ok(p),
     }
 }
