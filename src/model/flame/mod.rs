@@ -21,6 +21,7 @@
 //! - flam3 3.1.1 (`variations.c`, `parser.c`, `flam3.c`), the reference implementation
 //!   whose formulas, defaults and conventions this module follows.
 
+pub mod fast_math;
 pub mod format;
 pub mod genome;
 pub mod learnable;

@@ -12,6 +12,8 @@
 
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
+use super::fast_math;
+
 /// Arithmetic and the elementary functions the flam3 variations use.
 pub trait Real:
     Copy
@@ -73,15 +75,15 @@ impl Real for f64 {
     }
     #[inline(always)]
     fn sin(self) -> Self {
-        f64::sin(self)
+        fast_math::sin(self)
     }
     #[inline(always)]
     fn cos(self) -> Self {
-        f64::cos(self)
+        fast_math::cos(self)
     }
     #[inline(always)]
     fn sin_cos(self) -> (Self, Self) {
-        f64::sin_cos(self)
+        fast_math::sin_cos(self)
     }
     #[inline(always)]
     fn tan(self) -> Self {
@@ -117,7 +119,7 @@ impl Real for f64 {
     }
     #[inline(always)]
     fn atan2(self, x: Self) -> Self {
-        f64::atan2(self, x)
+        fast_math::atan2(self, x)
     }
     #[inline(always)]
     fn pow(self, e: Self) -> Self {
@@ -264,15 +266,15 @@ impl<const K: usize> Real for Dual<K> {
         self.v
     }
     fn sin(self) -> Self {
-        let (s, c) = self.v.sin_cos();
+        let (s, c) = fast_math::sin_cos(self.v);
         self.chain(s, c)
     }
     fn cos(self) -> Self {
-        let (s, c) = self.v.sin_cos();
+        let (s, c) = fast_math::sin_cos(self.v);
         self.chain(c, -s)
     }
     fn sin_cos(self) -> (Self, Self) {
-        let (s, c) = self.v.sin_cos();
+        let (s, c) = fast_math::sin_cos(self.v);
         (self.chain(s, c), self.chain(c, -s))
     }
     fn tan(self) -> Self {
@@ -311,7 +313,7 @@ impl<const K: usize> Real for Dual<K> {
             *o = (x.v * y.d[k] - y.v * x.d[k]) / r2;
         }
         Dual {
-            v: y.v.atan2(x.v),
+            v: fast_math::atan2(y.v, x.v),
             d,
         }
     }

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use argmin::core::State;
 use argmin::core::observers::Observe;
-use ifslab::model::Affine2;
+use ifslab::model::{Affine2, IfsCode};
 
 use crate::driver::{GradState, RunPlan};
 use crate::error::{Error, Result};
@@ -48,6 +48,11 @@ pub const SELECTION_STREAMS: [u64; 3] = [u64::MAX - 1, u64::MAX - 2, u64::MAX - 
 /// recorded best is one step away from the θ that was measured — so none is trusted: each is
 /// scored on [`SELECTION_STREAMS`] with the renderer the run ends with, and the lowest mean
 /// wins (ties go to the later one: last, then best, then start).
+///
+/// A candidate whose maps are not all contractive is no IFS (it has no attractor, and the
+/// run's code file would be refused) and is passed over, whatever its score: an
+/// unconstrained parameterisation (`naive`) can end a run with an expanding map. The start
+/// is contractive by construction, so a run always returns an IFS.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct Selection {
     /// `last`, `best` or `start`.
@@ -60,6 +65,17 @@ pub struct Selection {
     pub best_iter: Option<u64>,
     /// Mean objective of the start, when it differs from both.
     pub start: Option<f64>,
+    /// Candidates passed over because a map is not contractive (`last`, `best`, `start`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub not_contractive: Vec<&'static str>,
+}
+
+/// Whether θ decodes to maps that are all contractive (largest singular value below 1).
+fn is_ifs(problem: &ImageProblem, theta: &[f64]) -> bool {
+    problem
+        .model()
+        .affine_maps(theta)
+        .is_ok_and(|maps| IfsCode::from_affine2(None, &maps).is_ok())
 }
 
 fn mean_objective(problem: &ImageProblem, theta: &[f64]) -> Result<f64> {
@@ -90,14 +106,36 @@ fn select(
     let score = |t: &[f64]| mean_objective(problem, t).unwrap_or(f64::INFINITY);
     let best_score = best.map(|b| score(b));
     let start_score = start.as_deref().map(score);
-    let mut choice = ("last", last_score);
-    for (name, v) in [("best", best_score), ("start", start_score)] {
+    let mut not_contractive = Vec::new();
+    let mut eligible = |name: &'static str, t: Option<&[f64]>| match t {
+        Some(t) if !is_ifs(problem, t) => {
+            not_contractive.push(name);
+            false
+        }
+        t => t.is_some(),
+    };
+    let candidates = [
+        ("last", eligible("last", Some(&last)).then_some(last_score)),
+        (
+            "best",
+            best_score.filter(|_| eligible("best", best.map(|b| b.as_slice()))),
+        ),
+        (
+            "start",
+            start_score.filter(|_| eligible("start", start.as_deref())),
+        ),
+    ];
+    let mut choice: Option<(&'static str, f64)> = None;
+    for (name, v) in candidates {
         if let Some(v) = v
-            && v < choice.1
+            && choice.is_none_or(|(_, c)| v < c)
         {
-            choice = (name, v);
+            choice = Some((name, v));
         }
     }
+    // None eligible: the last iterate (the caller's validation of the code then says which
+    // map is not contractive).
+    let choice = choice.unwrap_or(("last", last_score));
     let theta = match choice.0 {
         "best" => best.cloned().expect("scored"),
         "start" => start.clone().expect("scored"),
@@ -111,6 +149,7 @@ fn select(
             best: best_score,
             best_iter: best.map(|_| state.get_last_best_iter()),
             start: start_score,
+            not_contractive,
         },
     ))
 }
@@ -160,4 +199,84 @@ pub fn run_inversion(
         log: dir.join(LOG_FILE),
         selection,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::problems::image::config::{
+        GeneratorConfig, ModelConfig, RendererConfig, StrategyConfig, TargetConfig,
+    };
+    use ifslab::model::{ParamKind, library};
+    use ifslab::render::{RenderConfig, render};
+
+    /// A run whose last iterate has an expanding map — closer to the target than the
+    /// start, so it would win on score — returns the start instead: it is an IFS.
+    #[test]
+    fn an_expanding_last_iterate_is_passed_over() {
+        let size = 48;
+        let sierpinski = library::builtin("sierpinski").unwrap();
+        let maps = sierpinski.affine2().unwrap();
+        let target = render(
+            &maps,
+            &sierpinski.evaluation_probabilities().unwrap(),
+            &RenderConfig {
+                width: size as u32,
+                height: size as u32,
+                points: 200_000,
+                supersample: 2,
+                ..RenderConfig::default()
+            },
+            None,
+        )
+        .unwrap()
+        .values;
+        let cfg = InversionConfig {
+            seed: 1,
+            iterations: 1,
+            checkpoint_every: 0,
+            output: None,
+            target: TargetConfig {
+                image: None,
+                code: Some("sierpinski".into()),
+                suite: None,
+                index: None,
+                size,
+                polarity: Default::default(),
+            },
+            generator: GeneratorConfig {
+                trajectories: 300,
+                length: 110,
+                warmup: 10,
+                start_half_width: 2.0,
+            },
+            renderer: RendererConfig::default(),
+            model: ModelConfig {
+                maps: 3,
+                parameterisation: ParamKind::Naive,
+                ..ModelConfig::default()
+            },
+            loss: ifslab::loss::LossConfig {
+                lpips_weight: 0.0,
+                ..Default::default()
+            },
+            strategy: StrategyConfig::default(),
+        };
+        let problem = ImageProblem::from_config(&cfg, target.clone()).unwrap();
+        // Sierpiński with its first map stretched 3 % along x: not contractive.
+        let mut stretched = maps.clone();
+        stretched[0].m[(0, 0)] *= 2.0 * 1.03;
+        let last = problem.model().encode(&stretched).unwrap();
+        let start = initial_theta(&cfg, problem.model(), problem.target()).unwrap();
+        assert!(!is_ifs(&problem, &last) && is_ifs(&problem, &start));
+        let state = GradState::new().param(last.clone());
+        let (theta, s) = select(&problem, &state, &start).unwrap();
+        assert!(
+            s.last < s.start.unwrap(),
+            "the expanding code scores better: {s:?}"
+        );
+        assert_eq!(s.returned, "start", "{s:?}");
+        assert_eq!(s.not_contractive, ["last"]);
+        assert_eq!(theta, start);
+    }
 }
