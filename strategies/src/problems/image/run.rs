@@ -106,28 +106,22 @@ fn select(
     let score = |t: &[f64]| mean_objective(problem, t).unwrap_or(f64::INFINITY);
     let best_score = best.map(|b| score(b));
     let start_score = start.as_deref().map(score);
-    let mut not_contractive = Vec::new();
-    let mut eligible = |name: &'static str, t: Option<&[f64]>| match t {
-        Some(t) if !is_ifs(problem, t) => {
-            not_contractive.push(name);
-            false
-        }
-        t => t.is_some(),
-    };
-    let candidates = [
-        ("last", eligible("last", Some(&last)).then_some(last_score)),
-        (
-            "best",
-            best_score.filter(|_| eligible("best", best.map(|b| b.as_slice()))),
-        ),
-        (
-            "start",
-            start_score.filter(|_| eligible("start", start.as_deref())),
-        ),
-    ];
+    let not_contractive: Vec<&'static str> = [
+        ("last", Some(last.as_slice())),
+        ("best", best.map(Vec::as_slice)),
+        ("start", start.as_deref()),
+    ]
+    .into_iter()
+    .filter_map(|(name, t)| t.filter(|t| !is_ifs(problem, t)).map(|_| name))
+    .collect();
     let mut choice: Option<(&'static str, f64)> = None;
-    for (name, v) in candidates {
+    for (name, v) in [
+        ("last", Some(last_score)),
+        ("best", best_score),
+        ("start", start_score),
+    ] {
         if let Some(v) = v
+            && !not_contractive.contains(&name)
             && choice.is_none_or(|(_, c)| v < c)
         {
             choice = Some((name, v));
