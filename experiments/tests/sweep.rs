@@ -540,6 +540,74 @@ fn a_killed_sweep_resumes_to_the_uninterrupted_result() {
 }
 
 #[test]
+fn a_sweep_that_needs_missing_lpips_weights_refuses_to_start() {
+    let tmp = tempfile::tempdir().unwrap();
+    // The runs weigh LPIPS from a weights file that is not there.
+    std::fs::write(
+        tmp.path().join("base.toml"),
+        format!(
+            "{BASE}[loss]\nlpips_weight = 2.0\nlpips_weights = \"nowhere/lpips.safetensors\"\n"
+        ),
+    )
+    .unwrap();
+    let sweep = tmp.path().join("sweep.toml");
+    std::fs::write(
+        &sweep,
+        "base = \"base.toml\"\n[[axis]]\nkey = \"seed\"\nvalues = [0, 1]\n",
+    )
+    .unwrap();
+    let p = Plan::load(&sweep).unwrap();
+    assert!(
+        p.runs.iter().all(|r| r
+            .config
+            .missing_lpips_weights()
+            .is_some_and(|m| m.ends_with("nowhere/lpips.safetensors"))),
+        "both runs lack their weights file"
+    );
+    let s = sweep.to_string_lossy().into_owned();
+    let out = tmp.path().join("out");
+    let o = out.to_string_lossy().into_owned();
+    let (ok, msg) = ifslab(&["sweep", &s, "-o", &o]);
+    assert!(!ok, "{msg}");
+    assert!(
+        msg.contains("2 runs of the sweep")
+            && msg.contains("nowhere/lpips.safetensors")
+            && msg.contains("--without-lpips"),
+        "{msg}"
+    );
+    assert!(!out.join("runs").exists(), "nothing was run");
+    // The Slurm script is not written either; a dry run still lists the runs.
+    let (ok, msg) = ifslab(&["sweep", &s, "-o", &o, "--slurm"]);
+    assert!(!ok && msg.contains("no LPIPS weights"), "{msg}");
+    let (ok, msg) = ifslab(&["sweep", &s, "-o", &o, "--dry-run"]);
+    assert!(ok && msg.contains("2 runs"), "{msg}");
+    // Asked for on the submitting machine, the array tasks are asked for it too.
+    let o2 = tmp.path().join("slurm_out").to_string_lossy().into_owned();
+    let (ok, msg) = ifslab(&["sweep", &s, "-o", &o2, "--slurm", "--without-lpips"]);
+    assert!(ok, "{msg}");
+    let script = std::fs::read_to_string(Path::new(&o2).join("slurm/sweep.sbatch")).unwrap();
+    assert!(
+        script
+            .lines()
+            .any(|l| l.contains(" sweep ") && l.contains("--without-lpips")),
+        "{script}"
+    );
+    // Asked for, the runs go without the term and say so in their summaries.
+    let (ok, msg) = ifslab(&["sweep", &s, "-o", &o, "--only", "seed=1", "--without-lpips"]);
+    assert!(ok, "{msg}");
+    let done = summary(&run_dir(&out, &p.runs[1].id));
+    assert!(
+        done["lpips_note"]
+            .as_str()
+            .is_some_and(|n| n.contains("LPIPS term skipped")),
+        "{done}"
+    );
+    // Once finished, a run needs no weights: only the unfinished one is counted.
+    let (ok, msg) = ifslab(&["sweep", &s, "-o", &o]);
+    assert!(!ok && msg.contains("1 runs of the sweep"), "{msg}");
+}
+
+#[test]
 fn the_slurm_script_runs_one_shard_per_array_task() {
     let tmp = tempfile::tempdir().unwrap();
     let sweep = r#"
@@ -560,7 +628,7 @@ setup = ["module load rust"]
 "#;
     let p = plan(tmp.path(), sweep).unwrap();
     let out = tmp.path().join("out");
-    let script = slurm::write_script(&p, &out, Path::new("/opt/ifslab")).unwrap();
+    let script = slurm::write_script(&p, &out, Path::new("/opt/ifslab"), &[]).unwrap();
     let text = std::fs::read_to_string(&script).unwrap();
     for line in [
         "#SBATCH --job-name=my_sweep",

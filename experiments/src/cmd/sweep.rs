@@ -45,6 +45,12 @@ pub struct Args {
     /// running.
     #[arg(long, value_name = "RUNS_DIR")]
     pub adopt: Option<PathBuf>,
+    /// Run even where the LPIPS weights are missing. Without this flag a sweep whose runs
+    /// weigh LPIPS in their loss or are scored on a suite refuses to start when the weights
+    /// are not there, since those runs would drop the term (and the LPIPS score) while
+    /// keeping the ids of runs made with it.
+    #[arg(long)]
+    pub without_lpips: bool,
     /// Write a Slurm job-array script (one task per shard, resources from the sweep's
     /// [slurm] section) into DIR/slurm/ instead of running.
     #[arg(long)]
@@ -112,9 +118,37 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
         return Ok(());
     }
+    if !a.without_lpips {
+        // What this invocation would run (Slurm: every run, on machines that share this
+        // one's files; here: this shard's unfinished runs).
+        let to_run = plan
+            .runs
+            .iter()
+            .enumerate()
+            .filter(|(k, r)| a.slurm || (shard.contains(*k) && !local::is_finished(&out, &r.id)))
+            .map(|(_, r)| r);
+        let missing: Vec<_> = to_run
+            .filter_map(|r| r.config.missing_lpips_weights())
+            .collect();
+        if let Some(path) = missing.first() {
+            bail!(
+                "{} runs of the sweep weigh LPIPS in their loss or are scored on a suite, and there \
+                 are no LPIPS weights at {}: they would drop the LPIPS term and score while keeping \
+                 the ids of runs made with it. Get the weights with `ifslab weights fetch` (or set \
+                 IFSLAB_LPIPS_WEIGHTS), or pass --without-lpips to run without them",
+                missing.len(),
+                path.display()
+            );
+        }
+    }
     if a.slurm {
         let exe = std::env::current_exe()?;
-        let script = slurm::write_script(&plan, &out, &exe)?;
+        let extra: Vec<String> = if a.without_lpips {
+            vec!["--without-lpips".into()]
+        } else {
+            Vec::new()
+        };
+        let script = slurm::write_script(&plan, &out, &exe, &extra)?;
         println!(
             "{}: {} runs in {} array tasks",
             script.display(),

@@ -7,6 +7,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
+use ifslab::loss::lpips::default_lpips_weights_path;
 use ifslab_strategies::problems::flame::FlameLearnConfig;
 use ifslab_strategies::problems::image::InversionConfig;
 use ifslab_strategies::problems::sdf::SdfConfig;
@@ -112,6 +113,30 @@ impl RunConfig {
         let text =
             std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
         RunConfig::from_toml(&text, path)
+    }
+
+    /// The LPIPS weights file this run would use but which is not there: an image run whose
+    /// loss weighs LPIPS (the file its config names, or the default) or that is scored on a
+    /// suite (whose tables have an LPIPS column; the default file). Such a run still goes —
+    /// without the term, or without the score, and saying so in its summary — but its run id
+    /// does not record that, so a sweep asks this first (`ifslab sweep --without-lpips`).
+    pub fn missing_lpips_weights(&self) -> Option<PathBuf> {
+        let RunConfig::Image(c) = self else {
+            return None;
+        };
+        let mut wanted = Vec::new();
+        if c.loss.lpips_weight > 0.0 {
+            wanted.push(
+                c.loss
+                    .lpips_weights
+                    .clone()
+                    .unwrap_or_else(default_lpips_weights_path),
+            );
+        }
+        if c.target.suite.is_some() {
+            wanted.push(default_lpips_weights_path());
+        }
+        wanted.into_iter().find(|p| !p.exists())
     }
 
     /// The problem's name.

@@ -29,8 +29,8 @@ pub fn shard_count(plan: &Plan) -> usize {
 }
 
 /// The `sbatch` script of a plan whose output folder is `out` (absolute), running the
-/// binary `exe` (absolute).
-pub fn script(plan: &Plan, out: &Path, exe: &Path) -> String {
+/// binary `exe` (absolute) with `extra` arguments after its own (`--without-lpips`).
+pub fn script(plan: &Plan, out: &Path, exe: &Path, extra: &[String]) -> String {
     let s = &plan.slurm;
     let n = shard_count(plan);
     let q = |p: &Path| shell_quote(&p.to_string_lossy());
@@ -93,9 +93,13 @@ pub fn script(plan: &Plan, out: &Path, exe: &Path) -> String {
         .iter()
         .map(|(a, l)| format!(" --only {}", shell_quote(&format!("{a}={l}"))))
         .collect();
+    let extra: String = extra
+        .iter()
+        .map(|a| format!(" {}", shell_quote(a)))
+        .collect();
     let _ = writeln!(
         t,
-        "{} sweep {} -o {}{only} --shard \"${{SLURM_ARRAY_TASK_ID}}/{n}\" --jobs 1 --threads \"{threads}\" &",
+        "{} sweep {} -o {}{only}{extra} --shard \"${{SLURM_ARRAY_TASK_ID}}/{n}\" --jobs 1 --threads \"{threads}\" &",
         q(exe),
         q(&plan.source),
         q(out)
@@ -117,14 +121,19 @@ pub fn script(plan: &Plan, out: &Path, exe: &Path) -> String {
 }
 
 /// Writes the plan's script into `out/slurm/` and returns its path.
-pub fn write_script(plan: &Plan, out: &Path, exe: &Path) -> anyhow::Result<PathBuf> {
+pub fn write_script(
+    plan: &Plan,
+    out: &Path,
+    exe: &Path,
+    extra: &[String],
+) -> anyhow::Result<PathBuf> {
     let out = std::path::absolute(out).with_context(|| format!("resolving {}", out.display()))?;
     let exe = std::path::absolute(exe).with_context(|| format!("resolving {}", exe.display()))?;
     std::fs::create_dir_all(out.join(SLURM_DIR).join("logs"))
         .with_context(|| format!("creating {}", out.join(SLURM_DIR).display()))?;
     super::local::write_plan(plan, &out)?;
     let path = out.join(SLURM_DIR).join(SCRIPT_FILE);
-    ifslab::io::write_atomic(&path, script(plan, &out, &exe).as_bytes())?;
+    ifslab::io::write_atomic(&path, script(plan, &out, &exe, extra).as_bytes())?;
     Ok(path)
 }
 
