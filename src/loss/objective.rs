@@ -82,6 +82,14 @@ impl Default for LossConfig {
 }
 
 impl LossConfig {
+    /// The LPIPS weights file the loss loads: `lpips_weights`, else the default
+    /// ([`default_lpips_weights_path`]).
+    pub fn lpips_weights_path(&self) -> PathBuf {
+        self.lpips_weights
+            .clone()
+            .unwrap_or_else(default_lpips_weights_path)
+    }
+
     /// Checks every field; the error names the field and says what is allowed.
     pub fn validate(&self) -> Result<()> {
         for (name, v) in [
@@ -231,10 +239,7 @@ impl Objective {
         let target = target.detach().contiguous()?;
         let (mut lpips, mut lpips_skip_reason) = (None, None);
         if config.lpips_weight > 0.0 {
-            let path = config
-                .lpips_weights
-                .clone()
-                .unwrap_or_else(default_lpips_weights_path);
+            let path = config.lpips_weights_path();
             if path.exists() || config.lpips_required {
                 let net = Lpips::load(&path)?;
                 let feats = net.features(&downsample(&target, config.lpips_downsample)?)?;

@@ -119,13 +119,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     if !a.without_lpips {
-        // What this invocation would run (Slurm: every run, on machines that share this
-        // one's files; here: this shard's unfinished runs).
+        // What this invocation would run: the unfinished runs (Slurm: of every shard, on
+        // machines that share this one's files; here: of this shard).
         let to_run = plan
             .runs
             .iter()
             .enumerate()
-            .filter(|(k, r)| a.slurm || (shard.contains(*k) && !local::is_finished(&out, &r.id)))
+            .filter(|(k, r)| (a.slurm || shard.contains(*k)) && !local::is_finished(&out, &r.id))
             .map(|(_, r)| r);
         let missing: Vec<_> = to_run
             .filter_map(|r| r.config.missing_lpips_weights())

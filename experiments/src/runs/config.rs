@@ -126,12 +126,7 @@ impl RunConfig {
         };
         let mut wanted = Vec::new();
         if c.loss.lpips_weight > 0.0 {
-            wanted.push(
-                c.loss
-                    .lpips_weights
-                    .clone()
-                    .unwrap_or_else(default_lpips_weights_path),
-            );
+            wanted.push(c.loss.lpips_weights_path());
         }
         if c.target.suite.is_some() {
             wanted.push(default_lpips_weights_path());
