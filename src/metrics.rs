@@ -261,13 +261,20 @@ pub struct ImageMetrics {
     pub f1: f64,
     /// Number of foreground pixels the PSNR and SSIM averaged over.
     pub foreground_pixels: usize,
+    /// PSNR (dB) over every pixel of the crop, background included (the usual image-metric
+    /// reading where a protocol does not say "foreground").
+    pub psnr_crop: f64,
+    /// SSIM averaged over every pixel of the crop, background included (black on black
+    /// scores 1 there).
+    pub ssim_crop: f64,
 }
 
 /// The chaotic-splatting paper's evaluation: crop [`EVAL_BORDER_FRACTION`] of each side, then
 /// PSNR and SSIM over the pixels where either image is > 0 (the SSIM map is computed on the
 /// full image, then cropped and masked), IoU and F1 of the `> 0` masks, and LPIPS of the
 /// cropped images if `net` is given (the crop must be at least [`LPIPS_MIN_SIDE`] pixels a
-/// side).
+/// side). PSNR and SSIM over the whole crop come too: the paper's text does not say which
+/// pixels its PSNR and SSIM average over.
 ///
 /// [`LPIPS_MIN_SIDE`]: crate::loss::lpips::LPIPS_MIN_SIDE Images are row-major, values in [0, 1].
 pub fn paper_metrics<T: Real + candle_core::WithDType>(
@@ -310,6 +317,7 @@ pub fn cropped_metrics<T: Real + candle_core::WithDType>(
         .map(|(&v, _)| f64_of(v))
         .sum::<f64>()
         / foreground_pixels as f64;
+    let ssim_crop = map.iter().map(|&v| f64_of(v)).sum::<f64>() / map.len() as f64;
     let pm: Vec<bool> = p.iter().map(|&v| f64_of(v) > 0.0).collect();
     let tm: Vec<bool> = t.iter().map(|&v| f64_of(v) > 0.0).collect();
     let lpips = match net {
@@ -323,6 +331,8 @@ pub fn cropped_metrics<T: Real + candle_core::WithDType>(
         iou: iou(&pm, &tm)?,
         f1: f1(&pm, &tm)?,
         foreground_pixels,
+        psnr_crop: psnr(&p, &t, 1.0)?,
+        ssim_crop,
     })
 }
 
@@ -408,6 +418,16 @@ mod tests {
         q[30 * w + 30] = 0.0;
         let m = paper_metrics(&q, &t, w, h, None).unwrap();
         assert!(m.psnr.is_finite() && m.ssim < 1.0 && m.iou < 1.0);
+        // Over the whole crop the one wrong pixel weighs less: the background matches.
+        let (fg, all) = (m.foreground_pixels as f64, (48 * 48) as f64);
+        let db = 10.0 * (all / fg).log10();
+        assert!(
+            (m.psnr_crop - m.psnr - db).abs() < 1e-9,
+            "{} {}",
+            m.psnr_crop,
+            m.psnr
+        );
+        assert!(m.ssim_crop > m.ssim && m.ssim_crop < 1.0);
         assert!(paper_metrics(&vec![0.0; w * h], &vec![0.0; w * h], w, h, None).is_err());
     }
 }

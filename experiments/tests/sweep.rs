@@ -602,9 +602,30 @@ fn a_sweep_that_needs_missing_lpips_weights_refuses_to_start() {
             .is_some_and(|n| n.contains("LPIPS term skipped")),
         "{done}"
     );
+    // The report says so: a table of such runs is not the method its labels name.
+    let (ok, msg) = ifslab(&["collect", &o]);
+    assert!(
+        ok && msg.contains("warning: notes in the runs' summaries"),
+        "{msg}"
+    );
+    let report = std::fs::read_to_string(out.join("report/report.md")).unwrap();
+    assert!(
+        report.contains("Runs that left notes in their summaries: 1**")
+            && report.contains("lpips_note: LPIPS term skipped")
+            && report.contains("## Notes")
+            && report.contains(&p.runs[1].id),
+        "{report}"
+    );
     // Once finished, a run needs no weights: only the unfinished one is counted.
     let (ok, msg) = ifslab(&["sweep", &s, "-o", &o]);
-    assert!(!ok && msg.contains("1 runs of the sweep"), "{msg}");
+    assert!(
+        !ok && msg.contains("1 run of the sweep weighs LPIPS in its loss"),
+        "{msg}"
+    );
+    // The library's runner refuses too: a program calling `run_sweep` is protected.
+    let opts = RunnerOptions::new(1, Some(1), Shard::ALL).unwrap();
+    let err = run_sweep(&p, &out, &opts, &Silent, &silent).unwrap_err();
+    assert!(err.to_string().contains("no LPIPS weights"), "{err}");
 }
 
 #[test]

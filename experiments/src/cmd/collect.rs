@@ -44,5 +44,15 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         report.display(),
         c.rows.len()
     );
+    let notes = c.notes();
+    if let Some((r, field, text)) = notes.first() {
+        eprintln!(
+            "warning: notes in the runs' summaries: {} (see the report's Notes), e.g. {} {}: {field}: {}",
+            notes.len(),
+            r.id,
+            r.name,
+            text.trim()
+        );
+    }
     Ok(())
 }

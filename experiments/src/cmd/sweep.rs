@@ -6,7 +6,9 @@ use std::path::PathBuf;
 use anyhow::{Context, bail};
 use ifslab_experiments::progress::Progress;
 use ifslab_experiments::sweep::local::{self, RunStatus};
-use ifslab_experiments::sweep::{Plan, PlannedRun, RunnerOptions, Shard, run_sweep, slurm};
+use ifslab_experiments::sweep::{
+    Plan, PlannedRun, RunnerOptions, Shard, check_lpips_weights, run_sweep, slurm,
+};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 
 #[derive(clap::Args, Debug)]
@@ -118,28 +120,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
         return Ok(());
     }
-    if !a.without_lpips {
-        // What this invocation would run: the unfinished runs (Slurm: of every shard, on
-        // machines that share this one's files; here: of this shard).
-        let to_run = plan
-            .runs
-            .iter()
-            .enumerate()
-            .filter(|(k, r)| (a.slurm || shard.contains(*k)) && !local::is_finished(&out, &r.id))
-            .map(|(_, r)| r);
-        let missing: Vec<_> = to_run
-            .filter_map(|r| r.config.missing_lpips_weights())
-            .collect();
-        if let Some(path) = missing.first() {
-            bail!(
-                "{} runs of the sweep weigh LPIPS in their loss or are scored on a suite, and there \
-                 are no LPIPS weights at {}: they would drop the LPIPS term and score while keeping \
-                 the ids of runs made with it. Get the weights with `ifslab weights fetch` (or set \
-                 IFSLAB_LPIPS_WEIGHTS), or pass --without-lpips to run without them",
-                missing.len(),
-                path.display()
-            );
-        }
+    if a.slurm && !a.without_lpips {
+        // What the array tasks would run, on machines that share this one's files: the
+        // unfinished runs of every shard. (A local sweep checks its own in `run_sweep`.)
+        check_lpips_weights(
+            plan.runs
+                .iter()
+                .filter(|r| !local::is_finished(&out, &r.id)),
+        )?;
     }
     if a.slurm {
         let exe = std::env::current_exe()?;
@@ -166,7 +154,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
         return Ok(());
     }
-    let opts = RunnerOptions::new(a.jobs, a.threads, shard)?;
+    let opts = RunnerOptions::new(a.jobs, a.threads, shard)?.without_lpips(a.without_lpips);
     let mp = MultiProgress::new();
     let overall = RunBar::new(&mp, "sweep".into());
     let per_run =

@@ -30,6 +30,13 @@ pub struct ViewScore {
     pub ssim: f64,
     /// LPIPS (AlexNet), when the weights are there.
     pub lpips: Option<f64>,
+    /// PSNR over every pixel of the crop, background included (capped like `psnr`; absent
+    /// from scores made before it was reported).
+    #[serde(default)]
+    pub psnr_crop: Option<f64>,
+    /// SSIM over every pixel of the crop, background included.
+    #[serde(default)]
+    pub ssim_crop: Option<f64>,
 }
 
 /// A code's score on one suite entry: the means over its views (what the paper's Table 3
@@ -48,6 +55,12 @@ pub struct SuiteScore {
     pub ssim: f64,
     /// Mean LPIPS over the views (absent without weights).
     pub lpips: Option<f64>,
+    /// Mean PSNR over the views, every pixel of each crop (see [`ViewScore::psnr_crop`]).
+    #[serde(default)]
+    pub psnr_crop: Option<f64>,
+    /// Mean SSIM over the views, every pixel of each crop.
+    #[serde(default)]
+    pub ssim_crop: Option<f64>,
     /// Seconds the renders and metrics took.
     pub seconds: f64,
     /// Every view.
@@ -128,14 +141,19 @@ pub fn score_maps(
             psnr: m.psnr.min(PSNR_CAP),
             ssim: m.ssim,
             lpips: m.lpips,
+            psnr_crop: Some(m.psnr_crop.min(PSNR_CAP)),
+            ssim_crop: Some(m.ssim_crop),
         });
     }
     let mean = |f: fn(&ViewScore) -> f64| views.iter().map(f).sum::<f64>() / views.len() as f64;
-    let lpips = views
-        .iter()
-        .map(|v| v.lpips)
-        .collect::<Option<Vec<f64>>>()
-        .map(|l| l.iter().sum::<f64>() / l.len() as f64);
+    let mean_of = |f: fn(&ViewScore) -> Option<f64>| {
+        views
+            .iter()
+            .map(f)
+            .collect::<Option<Vec<f64>>>()
+            .map(|l| l.iter().sum::<f64>() / l.len() as f64)
+    };
+    let lpips = mean_of(|v| v.lpips);
     Ok(SuiteScore {
         index,
         f1: mean(|v| v.f1),
@@ -143,6 +161,8 @@ pub fn score_maps(
         psnr: mean(|v| v.psnr),
         ssim: mean(|v| v.ssim),
         lpips,
+        psnr_crop: mean_of(|v| v.psnr_crop),
+        ssim_crop: mean_of(|v| v.ssim_crop),
         seconds: started.elapsed().as_secs_f64(),
         views,
     })

@@ -264,6 +264,25 @@ impl Collected {
         (c("finished"), c("failed"), c("interrupted"), c("missing"))
     }
 
+    /// The notes finished runs left in their summaries (fields named `…note` holding text,
+    /// such as `lpips_note`: a run that went without something its config asks for), as (row,
+    /// field, text). A table mixing such runs with others is not one method's: the report
+    /// lists them.
+    pub fn notes(&self) -> Vec<(&Row, &str, &str)> {
+        let mut out = Vec::new();
+        for r in &self.rows {
+            for (k, v) in &r.summary {
+                if let Value::String(t) = v
+                    && k.ends_with("note")
+                    && !t.trim().is_empty()
+                {
+                    out.push((r, k.as_str(), t.as_str()));
+                }
+            }
+        }
+        out
+    }
+
     fn axis_index(&self, axis: &str) -> anyhow::Result<usize> {
         self.axes.iter().position(|a| a == axis).with_context(|| {
             format!(
@@ -620,6 +639,20 @@ pub fn write_report(c: &Collected, out: &Path, opts: &ReportOptions) -> anyhow::
             String::new()
         }
     );
+    let notes = c.notes();
+    if !notes.is_empty() {
+        let _ = writeln!(
+            md,
+            "**Runs that left notes in their summaries: {}** (listed under Notes at the end): \
+             read them before comparing those runs' numbers — a run that went without a term \
+             its config asks for is not the method its labels name.\n",
+            notes
+                .iter()
+                .map(|(r, ..)| &r.id)
+                .collect::<BTreeSet<_>>()
+                .len()
+        );
+    }
     md.push_str("Full tables: [results.csv](results.csv), [results.json](results.json). ");
     md.push_str("Aggregates are over finished runs: mean ± sample standard deviation (count); a group of one run shows its value.\n\n");
     for group in &by {
@@ -701,6 +734,12 @@ pub fn write_report(c: &Collected, out: &Path, opts: &ReportOptions) -> anyhow::
                     e.lines().next().unwrap_or("")
                 );
             }
+        }
+    }
+    if !notes.is_empty() {
+        md.push_str("\n## Notes\n\n");
+        for (r, field, text) in &notes {
+            let _ = writeln!(md, "- `{}` {}: {field}: {}", r.id, r.name, text.trim());
         }
     }
     let path = out.join("report.md");

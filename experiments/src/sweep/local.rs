@@ -73,6 +73,9 @@ pub struct RunnerOptions {
     pub threads: usize,
     /// Which runs of the sweep.
     pub shard: Shard,
+    /// Run even where the LPIPS weights some runs need are missing (see
+    /// [`check_lpips_weights`]); off unless asked for.
+    pub without_lpips: bool,
 }
 
 impl RunnerOptions {
@@ -90,8 +93,44 @@ impl RunnerOptions {
             jobs,
             threads,
             shard,
+            without_lpips: false,
         })
     }
+
+    /// The same options, running (or not) where LPIPS weights are missing.
+    pub fn without_lpips(self, without_lpips: bool) -> Self {
+        RunnerOptions {
+            without_lpips,
+            ..self
+        }
+    }
+}
+
+/// Refuses runs that would weigh or score LPIPS without its weights file: such a run drops the
+/// term (or the score) and says so in its summary, but its id — a hash of its config — is the
+/// id of the run made with the weights, so a table would silently mix two methods. The error
+/// names how many of `runs` are affected and the missing file.
+pub fn check_lpips_weights<'a>(
+    runs: impl IntoIterator<Item = &'a PlannedRun>,
+) -> anyhow::Result<()> {
+    let missing: Vec<PathBuf> = runs
+        .into_iter()
+        .filter_map(|r| r.config.missing_lpips_weights())
+        .collect();
+    if let Some(path) = missing.first() {
+        let (n, verb) = match missing.len() {
+            1 => ("1 run of the sweep weighs".to_string(), "it would drop"),
+            n => (format!("{n} runs of the sweep weigh"), "they would drop"),
+        };
+        bail!(
+            "{n} LPIPS in its loss or is scored on a suite, and there are no LPIPS weights at {}: \
+             {verb} the LPIPS term and score while keeping the ids of runs made with it. Get the \
+             weights with `ifslab weights fetch` (or set IFSLAB_LPIPS_WEIGHTS), or pass \
+             --without-lpips to run without them",
+            path.display()
+        );
+    }
+    Ok(())
 }
 
 /// How one run went.
@@ -160,7 +199,6 @@ pub fn run_sweep(
     overall: &dyn Progress,
     per_run: &(dyn Fn(&PlannedRun) -> Box<dyn Progress> + Sync),
 ) -> anyhow::Result<SweepOutcome> {
-    write_plan(plan, out)?;
     let mine: Vec<&PlannedRun> = plan
         .runs
         .iter()
@@ -177,6 +215,10 @@ pub fn run_sweep(
             todo.push(r);
         }
     }
+    if !opts.without_lpips {
+        check_lpips_weights(todo.iter().copied())?;
+    }
+    write_plan(plan, out)?;
     overall.start("runs", todo.len() as u64);
     let next = AtomicUsize::new(0);
     let results = Mutex::new(Vec::new());

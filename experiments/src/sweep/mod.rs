@@ -24,5 +24,5 @@ pub mod slurm;
 
 pub use config::SweepConfig;
 pub use expand::{Plan, PlannedRun};
-pub use local::{RunStatus, RunnerOptions, SweepOutcome, run_sweep};
+pub use local::{RunStatus, RunnerOptions, SweepOutcome, check_lpips_weights, run_sweep};
 pub use shard::Shard;
