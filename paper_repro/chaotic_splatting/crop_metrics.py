@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """PSNR and SSIM over the whole crop (background included) beside the foreground-only
-values the suite tables report, for the committed Table 3 runs of codes FIRST..LAST-1.
+values the suite tables report, for the committed runs of codes FIRST..LAST-1 of Table 3
+(or of the results folder TABLE names, e.g. `table4_medium`).
 
 Runs made before `ifslab suite score` reported `psnr_crop` / `ssim_crop` lack them in their
 summaries; this re-scores their codes (deterministic: the same renders as the runs' own
@@ -8,7 +9,7 @@ scoring, so the foreground values it prints are the committed ones) and prints t
 per method over all seven views and over the full view alone. It needs the release build
 and the medium suite (`make_suite.sh medium`).
 
-    python3 paper_repro/chaotic_splatting/crop_metrics.py 0 10   # from the repository root
+    python3 paper_repro/chaotic_splatting/crop_metrics.py FIRST LAST [TABLE]   # from the repository root
 """
 
 import json
@@ -18,7 +19,6 @@ import subprocess
 import sys
 
 HERE = "paper_repro/chaotic_splatting"
-RESULTS = f"{HERE}/results/table3_medium"
 SUITE = f"{HERE}/suite/medium"
 IFSLAB = "target/release/ifslab"
 
@@ -35,11 +35,13 @@ def score(index, code):
 
 def main():
     first, last = int(sys.argv[1]), int(sys.argv[2])
-    plan = json.load(open(f"{RESULTS}/sweep.json"))
+    table = sys.argv[3] if len(sys.argv) > 3 else "table3_medium"
+    results = f"{HERE}/results/{table}"
+    plan = json.load(open(f"{results}/sweep.json"))
     by_method = {}
     for run in plan["runs"]:
         method, index = run["labels"][0], int(run["labels"][1])
-        code = f"{RESULTS}/runs/{run['id']}/code.json"
+        code = f"{results}/runs/{run['id']}/code.json"
         if first <= index < last and os.path.exists(code):
             by_method.setdefault(method, []).append(score(index, code))
     mean = statistics.mean
