@@ -120,16 +120,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
         return Ok(());
     }
-    if a.slurm && !a.without_lpips {
-        // What the array tasks would run, on machines that share this one's files: the
-        // unfinished runs of every shard. (A local sweep checks its own in `run_sweep`.)
-        check_lpips_weights(
-            plan.runs
-                .iter()
-                .filter(|r| !local::is_finished(&out, &r.id)),
-        )?;
-    }
     if a.slurm {
+        if !a.without_lpips {
+            // What the array tasks would run, on machines that share this one's files: the
+            // unfinished runs of every shard. (A local sweep checks its own in `run_sweep`.)
+            check_lpips_weights(
+                plan.runs
+                    .iter()
+                    .filter(|r| !local::is_finished(&out, &r.id)),
+            )?;
+        }
         let exe = std::env::current_exe()?;
         let extra: Vec<String> = if a.without_lpips {
             vec!["--without-lpips".into()]
