@@ -43,21 +43,21 @@ def same(a, b):
     return abs(a - b) <= 1e-9 * max(1.0, abs(a), abs(b))
 
 
-def write_crop(summary_path, scored):
-    """Adds the whole-crop values of `scored` to the summary's suite block; False (and
-    nothing written) when its foreground values differ from the committed ones."""
-    summary = json.load(open(summary_path))
+def write_crop(summary_path, summary, scored):
+    """Adds the whole-crop values of `scored` to the run's `summary` and writes it; False
+    (and nothing written) when its foreground values differ from the committed ones."""
     suite = summary.get("suite")
-    if suite is None or len(suite["views"]) != len(scored["views"]):
-        return False
     keys = ("f1", "iou", "psnr", "ssim")
-    if not all(same(suite[k], scored[k]) for k in keys):
+    pairs = [(suite, scored)] + list(zip(suite["views"], scored["views"])) if suite else []
+    if (
+        not suite
+        or len(suite["views"]) != len(scored["views"])
+        or any(a.get("name") != b.get("name") for a, b in pairs[1:])
+        or not all(same(a[k], b[k]) for a, b in pairs for k in keys)
+    ):
         return False
-    for mine, new in zip(suite["views"], scored["views"]):
-        if mine["name"] != new["name"] or not all(same(mine[k], new[k]) for k in keys):
-            return False
+    for mine, new in pairs:
         mine["psnr_crop"], mine["ssim_crop"] = new["psnr_crop"], new["ssim_crop"]
-    suite["psnr_crop"], suite["ssim_crop"] = scored["psnr_crop"], scored["ssim_crop"]
     tmp = summary_path + ".tmp"
     with open(tmp, "w") as f:
         json.dump(summary, f, indent=2)
@@ -83,14 +83,15 @@ def main():
         code = f"{results}/runs/{run_id}/code.json"
         summary = f"{results}/runs/{run_id}/summary.json"
         if first <= index < last and os.path.exists(code):
-            committed = json.load(open(summary)).get("suite") or {}
+            run_summary = json.load(open(summary))
+            committed = run_summary.get("suite") or {}
             if "psnr_crop" in committed:
                 # Scored by the run itself (or written earlier): nothing to re-score.
                 by_method.setdefault(method, []).append(committed)
                 continue
             scored = score(index, code)
             by_method.setdefault(method, []).append(scored)
-            if write and not write_crop(summary, scored):
+            if write and not write_crop(summary, run_summary, scored):
                 print(f"{run_id}: re-scored foreground values differ from the summary's; not written", file=sys.stderr)
     mean = statistics.mean
     for method, scores in by_method.items():
