@@ -19,6 +19,10 @@ fi
 # release with debug assertions and overflow checks; a separate test profile used to compile
 # every dependency a second time).
 cargo test --workspace --profile ci
+# The GPU backend compiles without CUDA (its driver and NVRTC are loaded at run time): build
+# it and its GPU tests, which run on a GPU machine only (scripts/gpu/run.sh, docs/GPU.md).
+cargo build --profile ci -p ifslab --features cuda
+cargo test --profile ci -p ifslab --features cuda --test splat_cuda --no-run
 # Sweeps on a real (one-node, localhost) Slurm cluster: skipped, loudly, where Slurm cannot
 # be installed or started; never a silent pass.
 # The tests built the binary already (the CLI tests run it); `cargo build` would unify

@@ -130,6 +130,9 @@ pub enum Error {
     /// A tensor operation (candle) failed.
     #[error("tensor operation failed: {0}")]
     Tensor(#[from] candle_core::Error),
+    /// The GPU backend is not there or failed (`device = "cuda"`).
+    #[error("GPU: {0}")]
+    Device(String),
 }
 
 impl Error {

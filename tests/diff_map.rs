@@ -119,6 +119,7 @@ fn config() -> SplatConfig {
             seed: 0,
         },
         framing: SplatFraming::default(),
+        device: Default::default(),
     }
 }
 

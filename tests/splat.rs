@@ -34,6 +34,7 @@ fn config(blend: Blend, supersample: usize, framing: SplatFraming) -> SplatConfi
             seed: 0,
         },
         framing,
+        device: Default::default(),
     }
 }
 
@@ -305,4 +306,22 @@ fn map_probabilities_choose_the_maps_and_keep_gradients_exact() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("2 probabilities for 3 maps"), "{e}");
+}
+
+/// `device = "cuda"` in a build without the GPU backend is refused with how to get one.
+#[cfg(not(feature = "cuda"))]
+#[test]
+fn cuda_without_the_feature_is_refused_clearly() {
+    use ifslab::render::splat::SplatDevice;
+    let cfg = SplatConfig {
+        device: SplatDevice::Cuda,
+        ..config(Blend::Coverage, 1, SplatFraming::default())
+    };
+    let err = splat::forward::<f32>(&cfg, &maps(), 1)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("--features cuda"), "{err}");
+    let parsed: SplatDevice = "cuda".parse().unwrap();
+    assert_eq!(parsed, SplatDevice::Cuda);
+    assert!("gpu".parse::<SplatDevice>().is_err());
 }

@@ -70,11 +70,28 @@ fn maps() -> Vec<Affine2> {
 fn bench_splat(c: &mut Criterion) {
     let maps = maps();
     let dev = Device::Cpu;
-    for name in ["paper", "cheap", "demo"] {
-        let cfg = setting(name);
+    #[cfg_attr(not(feature = "cuda"), allow(unused_mut))]
+    let mut settings: Vec<(String, SplatConfig)> = ["paper", "cheap", "demo"]
+        .iter()
+        .map(|n| (n.to_string(), setting(n)))
+        .collect();
+    // With the GPU backend, each setting again with the splat on the GPU (groups
+    // `iteration_paper_cuda`, …): the CPU figures and the GPU's in one run, on one machine.
+    #[cfg(feature = "cuda")]
+    for n in ["paper", "cheap", "demo"] {
+        settings.push((
+            format!("{n}_cuda"),
+            SplatConfig {
+                device: ifslab::render::splat::SplatDevice::Cuda,
+                ..setting(n)
+            },
+        ));
+    }
+    for (name, cfg) in settings {
         let (w, h) = (cfg.width, cfg.height);
         // The target: the same code rendered with other trajectories.
-        let (target, _) = splat::forward::<f32>(&cfg, &maps, 99).unwrap();
+        let (target, _) = splat::forward::<f32>(&setting(name.trim_end_matches("_cuda")), &maps, 99)
+            .unwrap();
         let target_t = Tensor::from_vec(target.clone(), (h, w), &dev).unwrap();
         let loss_cfg = LossConfig {
             lpips_weight: 0.0,

@@ -159,6 +159,17 @@ fn adam_on_similitudes_recovers_a_perturbed_code() {
 /// IoU of the EM start and of the hybrid run from it (cold annealing phases every 50
 /// iterations, coarse-to-fine σ 1 → 0.4), for `maps` maps against `code`'s 64² render.
 fn em_then_hybrid(code: &str, maps: usize, seed: u64, iterations: u64) -> (f64, f64) {
+    em_then_hybrid_on(code, maps, seed, iterations, Default::default())
+}
+
+/// [`em_then_hybrid`] with the splat on `device`.
+fn em_then_hybrid_on(
+    code: &str,
+    maps: usize,
+    seed: u64,
+    iterations: u64,
+    device: ifslab::render::splat::SplatDevice,
+) -> (f64, f64) {
     use ifslab_strategies::optim::hybrid::HybridConfig;
     use ifslab_strategies::problems::image::InitKind;
     let size = 64;
@@ -176,6 +187,7 @@ fn em_then_hybrid(code: &str, maps: usize, seed: u64, iterations: u64) -> (f64, 
     cfg.model.maps = maps;
     cfg.model.init = InitKind::Em;
     cfg.renderer.sigma_final = Some(0.4);
+    cfg.renderer.device = device;
     let model = cfg.model.build().unwrap();
     let start =
         ifslab_strategies::problems::image::initial_theta(&cfg, model.as_ref(), &t).unwrap();
@@ -197,6 +209,31 @@ fn hybrid_recovers_the_sierpinski_triangle_across_seeds() {
         assert!(
             iou > 0.95 && iou >= em_only,
             "seed {seed}: IoU {iou:.3} from an EM start at {em_only:.3}"
+        );
+    }
+}
+
+/// The same recovery with the splat on the GPU (run by `scripts/gpu/run.sh`): every seed
+/// recovers the triangle as on the CPU, and the final IoU is the CPU run's to within 0.02 (the
+/// GPU's sums round differently, so the runs drift apart slowly).
+#[cfg(feature = "cuda")]
+#[test]
+fn hybrid_recovers_the_sierpinski_triangle_on_the_gpu() {
+    use ifslab::render::splat::SplatDevice;
+    for seed in [0, 1, 2] {
+        let t0 = std::time::Instant::now();
+        let (em_only, gpu) = em_then_hybrid_on("sierpinski", 3, seed, 300, SplatDevice::Cuda);
+        let t_gpu = t0.elapsed().as_secs_f64();
+        let t0 = std::time::Instant::now();
+        let (_, cpu) = em_then_hybrid_on("sierpinski", 3, seed, 300, SplatDevice::Cpu);
+        let t_cpu = t0.elapsed().as_secs_f64();
+        eprintln!(
+            "seed {seed}: EM start {em_only:.3}, GPU {gpu:.3} ({t_gpu:.1} s), CPU {cpu:.3} \
+             ({t_cpu:.1} s)"
+        );
+        assert!(
+            gpu > 0.95 && gpu >= em_only && (gpu - cpu).abs() < 0.02,
+            "seed {seed}: GPU IoU {gpu:.3}, CPU {cpu:.3}, EM start {em_only:.3}"
         );
     }
 }

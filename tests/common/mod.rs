@@ -22,6 +22,7 @@ pub fn small_splat() -> SplatConfig {
             seed: 0,
         },
         framing: SplatFraming::default(),
+        device: Default::default(),
     }
 }
 

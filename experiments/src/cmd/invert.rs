@@ -61,6 +61,9 @@ pub struct Args {
     /// σ at the last iteration: σ shrinks geometrically from --sigma to it (coarse-to-fine).
     #[arg(long)]
     pub sigma_final: Option<f64>,
+    /// Where the splat runs: cpu, or cuda (an NVIDIA GPU; needs a build with --features cuda).
+    #[arg(long, default_value = "cpu")]
+    pub device: ifslab::render::splat::SplatDevice,
     /// Chaos-game trajectories per iteration.
     #[arg(long, default_value_t = 2000)]
     pub trajectories: usize,
@@ -186,6 +189,7 @@ fn config_from_flags(a: &Args) -> anyhow::Result<InversionConfig> {
             supersample: a.supersample,
             sigma: a.sigma,
             sigma_final: a.sigma_final,
+            device: a.device,
             ..RendererConfig::default()
         },
         loss: Default::default(),

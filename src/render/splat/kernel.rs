@@ -469,6 +469,20 @@ impl<T: SplatReal> Drop for Pooled<T> {
     }
 }
 
+#[cfg(feature = "cuda")]
+pub use super::cuda::GpuScalar;
+
+/// The precisions the GPU kernels exist in (with the `cuda` feature, what the driver needs of
+/// them; without it, nothing).
+#[cfg(not(feature = "cuda"))]
+pub trait GpuScalar {}
+
+#[cfg(not(feature = "cuda"))]
+impl GpuScalar for f32 {}
+
+#[cfg(not(feature = "cuda"))]
+impl GpuScalar for f64 {}
+
 /// Frees the recycled splat buffers of both precisions (they are otherwise kept for the next
 /// call).
 pub fn release_buffers() {
@@ -485,7 +499,7 @@ pub fn release_buffers() {
 /// also has AVX2 versions doing the same operations lane by lane in the same order (no fused
 /// multiply–adds, the same fixed-order lane reduction), so results are bit-identical
 /// whichever runs.
-pub trait SplatReal: Float + Send + Sync + std::fmt::Debug + 'static {
+pub trait SplatReal: Float + GpuScalar + Send + Sync + std::fmt::Debug + 'static {
     /// This precision's pool of recycled tile buffers (see [`Pooled`]).
     #[doc(hidden)]
     fn buffer_pool() -> &'static std::sync::Mutex<Vec<Vec<Self>>>;

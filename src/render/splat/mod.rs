@@ -32,6 +32,10 @@
 //! thread in point order. Every floating-point sum has a fixed order, so forward and reverse
 //! are bit-identical for any thread count.
 //!
+//! The splat (step 3 and its reverse) runs on the CPU or, with the `cuda` feature and
+//! `device = "cuda"`, on an NVIDIA GPU ([`cuda`]); steps 1–2 and the reverse scan stay on
+//! the CPU either way.
+//!
 //! [`SplatOp`] wraps the fused op as a candle `CustomOp1` (affine maps `(n, 6)`, or the
 //! parameters of any [`DiffMap2`] maps, → image `(H, W)`) so image losses compose as candle
 //! tensors and a GPU kernel can plug into `cuda_fwd`.
@@ -40,6 +44,8 @@
 //! - Djeacoumar et al., *Learning Image Fractals Using Chaotic Differentiable Point Splatting*.
 
 mod candle_op;
+#[cfg(feature = "cuda")]
+pub mod cuda;
 pub mod frame;
 pub mod kernel;
 pub mod trajectories;
@@ -48,12 +54,60 @@ use serde::{Deserialize, Serialize};
 
 pub use candle_op::{SplatOp, maps_from_tensor, maps_to_tensor, params_to_tensor};
 pub use frame::{FrameState, SplatFraming};
-pub use kernel::{Blend, SplatGrid, SplatReal, release_buffers};
+pub use kernel::{Blend, SplatGrid, SplatReal, SplatState, release_buffers};
 pub use trajectories::TrajectoryTape;
 
 use crate::chaos::ChaosGame;
 use crate::error::{Error, Result};
 use crate::model::diff_map::{DiffMap2, check_finite_params, flat_params, param_offsets};
+
+/// Where the splat kernel runs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SplatDevice {
+    /// The CPU kernel (tiled, all cores).
+    #[default]
+    Cpu,
+    /// An NVIDIA GPU (needs the `cuda` feature, the driver and NVRTC at run time).
+    Cuda,
+}
+
+impl SplatDevice {
+    /// `true` for the CPU (the default, left out of serialised configs).
+    pub fn is_cpu(&self) -> bool {
+        *self == SplatDevice::Cpu
+    }
+
+    /// Refuses a device this build or machine cannot use, saying why.
+    pub fn check(&self) -> Result<()> {
+        match self {
+            SplatDevice::Cpu => Ok(()),
+            #[cfg(feature = "cuda")]
+            SplatDevice::Cuda => cuda::describe().map(|_| ()),
+            #[cfg(not(feature = "cuda"))]
+            SplatDevice::Cuda => Err(Error::Device(
+                "device = \"cuda\" needs a build with the GPU backend: \
+                 cargo build --release --features cuda (the binary: -p ifslab-experiments \
+                 --features cuda)"
+                    .into(),
+            )),
+        }
+    }
+}
+
+impl std::str::FromStr for SplatDevice {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "cpu" => Ok(SplatDevice::Cpu),
+            "cuda" => Ok(SplatDevice::Cuda),
+            other => Err(Error::param(
+                "device",
+                format!("must be \"cpu\" or \"cuda\", got \"{other}\""),
+            )),
+        }
+    }
+}
 
 /// Everything the fused op needs besides the maps and the seed.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -77,6 +131,9 @@ pub struct SplatConfig {
     pub game: ChaosGame,
     /// Fit the points (differentiably) or use a fixed window.
     pub framing: SplatFraming,
+    /// Where the splat runs.
+    #[serde(skip_serializing_if = "SplatDevice::is_cpu")]
+    pub device: SplatDevice,
 }
 
 impl Default for SplatConfig {
@@ -93,6 +150,7 @@ impl Default for SplatConfig {
             alpha_max: 0.99,
             game: ChaosGame::default(),
             framing: SplatFraming::default(),
+            device: SplatDevice::Cpu,
         }
     }
 }
@@ -132,7 +190,7 @@ impl SplatConfig {
             return Err(Error::param("trajectories", "too many points for one call"));
         }
         self.framing.validate()?;
-        Ok(())
+        self.device.check()
     }
 
     /// The supersampled grid.
@@ -157,7 +215,17 @@ pub struct SplatTape<T: SplatReal> {
     /// The framing and what its reverse pass needs.
     pub frame: FrameState,
     /// The splat's own state (points in pixel space, bins, transmittance).
-    pub splat: kernel::SplatState<T>,
+    pub splat: SplatStateOn<T>,
+}
+
+/// The splat's tape on the device it ran on.
+#[derive(Clone, Debug)]
+pub enum SplatStateOn<T: SplatReal> {
+    /// The CPU kernel's state.
+    Cpu(kernel::SplatState<T>),
+    /// The GPU kernel's state (kept on the GPU).
+    #[cfg(feature = "cuda")]
+    Cuda(cuda::CudaSplatState<T>),
 }
 
 /// Forward pass: the image (row-major `height × width`, values ≥ 0) and its tape.
@@ -198,7 +266,19 @@ pub fn forward_with_probabilities<T: SplatReal>(
     )?;
     let uv: Vec<[T; 2]> = kept.iter().map(|p| frame.project(p)).collect();
     let grid = cfg.grid();
-    let (image, splat) = kernel::forward(&grid, uv);
+    let (image, splat) = match cfg.device {
+        SplatDevice::Cpu => {
+            let (image, state) = kernel::forward(&grid, uv);
+            (image, SplatStateOn::Cpu(state))
+        }
+        #[cfg(feature = "cuda")]
+        SplatDevice::Cuda => {
+            let (image, state) = cuda::forward(&grid, &uv)?;
+            (image, SplatStateOn::Cuda(state))
+        }
+        #[cfg(not(feature = "cuda"))]
+        SplatDevice::Cuda => unreachable!("validate() refuses cuda without the feature"),
+    };
     Ok((
         image,
         SplatTape {
@@ -236,7 +316,11 @@ pub fn backward<T: SplatReal>(
         )));
     }
     let grid = cfg.grid();
-    let guv = kernel::backward(&grid, &tape.splat, grad_image);
+    let guv = match &tape.splat {
+        SplatStateOn::Cpu(state) => kernel::backward(&grid, state, grad_image),
+        #[cfg(feature = "cuda")]
+        SplatStateOn::Cuda(state) => cuda::backward(&grid, state, grad_image)?,
+    };
     let kept = tape.trajectories.kept_points();
     let gx = tape.frame.backward(&kept, &guv);
     Ok(tape.trajectories.backward(maps, &gx))

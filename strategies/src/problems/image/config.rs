@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use ifslab::chaos::ChaosGame;
 use ifslab::loss::LossConfig;
 use ifslab::model::ParamKind;
-use ifslab::render::splat::{Blend, SplatConfig, SplatFraming};
+use ifslab::render::splat::{Blend, SplatConfig, SplatDevice, SplatFraming};
 use serde::{Deserialize, Serialize};
 
 use crate::driver::Params;
@@ -179,6 +179,10 @@ pub struct RendererConfig {
     /// points (Learning Fractals draws [−5, 5]²); points outside it are not drawn.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub window: Option<[f64; 4]>,
+    /// Where the splat runs: `"cpu"` (default) or `"cuda"` (an NVIDIA GPU; needs a build
+    /// with `--features cuda`).
+    #[serde(skip_serializing_if = "SplatDevice::is_cpu")]
+    pub device: SplatDevice,
 }
 
 impl Default for RendererConfig {
@@ -195,6 +199,7 @@ impl Default for RendererConfig {
             sigma_final: None,
             clamp: false,
             window: None,
+            device: SplatDevice::Cpu,
         }
     }
 }
@@ -597,6 +602,7 @@ impl InversionConfig {
                 }),
                 None => SplatFraming::default(),
             },
+            device: r.device,
         }
     }
 }

@@ -1,0 +1,482 @@
+//! The splat kernel on an NVIDIA GPU (`device = "cuda"`, the `cuda` feature).
+//!
+//! The chaos game, the framing and the reverse scan through the trajectories stay on the CPU
+//! (they are a few milliseconds at the paper's setting); what the GPU does is the splat —
+//! Gaussian footprints on the supersampled grid, blending, pooling — and its reverse pass to
+//! per-point gradients, which are nearly all of an iteration's time on the CPU. Per call the
+//! points go up (`8n` bytes in f32), the image comes down, and on the reverse pass `∂L/∂image`
+//! goes up and `∂L/∂(u, v)` comes down: megabytes, against a grid of `(s·W)·(s·H)` pixels
+//! that stays on the GPU (the transmittance the reverse pass needs is kept there in the tape).
+//!
+//! The kernels ([`SOURCE`], `splat.cu`) are compiled by NVRTC for the GPU found, once per
+//! process; the driver and NVRTC are loaded at run time, so the crate builds without CUDA.
+//! They are deterministic (integer atomics on fixed-point accumulators, fixed-order warp
+//! reductions): the same points give bit-identical images and gradients on every run. They
+//! agree with the CPU kernel to rounding (the CPU multiplies transmittances in point order,
+//! the GPU sums their logarithms): see `tests/splat_cuda.rs`.
+
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex, OnceLock};
+
+use cudarc::driver::{
+    CudaContext, CudaFunction, CudaSlice, CudaStream, DeviceRepr, LaunchConfig, PushKernelArg,
+    ValidAsZeroBits,
+};
+use cudarc::nvrtc::{CompileOptions, compile_ptx_with_opts};
+
+use super::kernel::{Blend, SplatGrid, SplatReal};
+use crate::error::{Error, Result};
+
+/// The kernels' CUDA C++ source.
+pub const SOURCE: &str = include_str!("splat.cu");
+
+/// Threads per block: eight warps, one point per warp.
+const BLOCK: u32 = 256;
+
+/// Precisions the kernels exist in.
+pub trait GpuScalar: DeviceRepr + ValidAsZeroBits + Unpin + Copy {
+    /// Suffix of this precision's kernels.
+    #[doc(hidden)]
+    const SUFFIX: &'static str;
+}
+
+impl GpuScalar for f32 {
+    const SUFFIX: &'static str = "f32";
+}
+
+impl GpuScalar for f64 {
+    const SUFFIX: &'static str = "f64";
+}
+
+struct Gpu {
+    stream: Arc<CudaStream>,
+    name: String,
+    capability: (i32, i32),
+    functions: HashMap<String, CudaFunction>,
+    /// The fixed-point accumulators, reused across calls; the lock also keeps one call's
+    /// kernels together on the stream.
+    acc: Mutex<Option<CudaSlice<i64>>>,
+}
+
+static GPU: OnceLock<std::result::Result<Gpu, String>> = OnceLock::new();
+
+fn device_error(message: impl Into<String>) -> Error {
+    Error::Device(message.into())
+}
+
+fn gpu() -> Result<&'static Gpu> {
+    GPU.get_or_init(init)
+        .as_ref()
+        .map_err(|e| device_error(e.clone()))
+}
+
+/// The GPU the splat runs on (`"NVIDIA H100 80GB HBM3 (compute 9.0)"`), or why there is none.
+pub fn describe() -> Result<String> {
+    let g = gpu()?;
+    Ok(format!(
+        "{} (compute {}.{})",
+        g.name, g.capability.0, g.capability.1
+    ))
+}
+
+fn init() -> std::result::Result<Gpu, String> {
+    // SAFETY: each probe opens the library with `dlopen` and closes it again.
+    if !unsafe { cudarc::driver::sys::is_culib_present() } {
+        return Err(
+            "device = \"cuda\" needs an NVIDIA GPU and its driver, but no CUDA driver \
+                    (libcuda.so) was found; use device = \"cpu\""
+                .into(),
+        );
+    }
+    // SAFETY: as above.
+    if !unsafe { cudarc::nvrtc::sys::is_culib_present() } {
+        return Err(
+            "device = \"cuda\" compiles its kernels with NVRTC, but libnvrtc.so.13 was \
+                    not found: install the CUDA 13 toolkit (or the `nvidia-cuda-nvrtc` wheel) \
+                    and put its library folder on LD_LIBRARY_PATH"
+                .into(),
+        );
+    }
+    let count = CudaContext::device_count()
+        .map_err(|e| format!("the CUDA driver could not be initialised: {e}"))?;
+    if count < 1 {
+        return Err("the CUDA driver is installed but reports no GPU; use device = \"cpu\"".into());
+    }
+    let ctx = CudaContext::new(0).map_err(|e| format!("cannot open GPU 0: {e}"))?;
+    let capability = ctx
+        .compute_capability()
+        .map_err(|e| format!("cannot read GPU 0's compute capability: {e}"))?;
+    let name = ctx.name().unwrap_or_else(|_| "GPU 0".into());
+    let opts = CompileOptions {
+        options: vec![format!(
+            "--gpu-architecture=compute_{}{}",
+            capability.0, capability.1
+        )],
+        name: Some("ifslab_splat.cu".into()),
+        ..Default::default()
+    };
+    let ptx = compile_ptx_with_opts(SOURCE, opts)
+        .map_err(|e| format!("NVRTC could not compile the splat kernels: {e:?}"))?;
+    let module = ctx
+        .load_module(ptx)
+        .map_err(|e| format!("the driver could not load the splat kernels: {e}"))?;
+    let mut functions = HashMap::new();
+    for kernel in ["splat_forward", "splat_pool", "splat_backward"] {
+        for suffix in [f32::SUFFIX, f64::SUFFIX] {
+            let name = format!("{kernel}_{suffix}");
+            let f = module
+                .load_function(&name)
+                .map_err(|e| format!("kernel {name} is missing: {e}"))?;
+            functions.insert(name, f);
+        }
+    }
+    Ok(Gpu {
+        stream: ctx.default_stream(),
+        name,
+        capability,
+        functions,
+        acc: Mutex::new(None),
+    })
+}
+
+/// Compiles the kernels with NVRTC for `arch` (e.g. `"compute_90"`) without a GPU: the check
+/// that the source is valid CUDA C++ on a machine with only NVRTC. Returns the PTX's length.
+pub fn compile_only(arch: &str) -> Result<usize> {
+    // SAFETY: as in `init`.
+    if !unsafe { cudarc::nvrtc::sys::is_culib_present() } {
+        return Err(device_error("libnvrtc.so.13 was not found"));
+    }
+    let opts = CompileOptions {
+        options: vec![format!("--gpu-architecture={arch}")],
+        ..Default::default()
+    };
+    compile_ptx_with_opts(SOURCE, opts)
+        .map(|p| p.to_src().len())
+        .map_err(|e| device_error(format!("NVRTC: {e:?}")))
+}
+
+/// Makes the GPU's context current on this thread (each call may come from another thread:
+/// the test harness, rayon, a sweep's workers).
+fn bind(st: &CudaStream) -> Result<()> {
+    st.context()
+        .bind_to_thread()
+        .map_err(driver("making the GPU context current"))
+}
+
+fn driver(what: &str) -> impl Fn(cudarc::driver::DriverError) -> Error + '_ {
+    move |e| device_error(format!("{what}: {e}"))
+}
+
+/// The footprint's constants as the kernels take them.
+struct Launch {
+    coverage: i32,
+    r: f64,
+    inv2s2: f64,
+    eps: f64,
+    inv1me: f64,
+    amax: f64,
+    norm: f64,
+    dscale: f64,
+}
+
+impl Launch {
+    fn new(grid: &SplatGrid) -> Self {
+        let eps = (-0.5 * grid.radius * grid.radius).exp();
+        let s2 = grid.sigma * grid.sigma;
+        Launch {
+            coverage: i32::from(grid.blend == Blend::Coverage),
+            r: grid.radius * grid.sigma,
+            inv2s2: 0.5 / s2,
+            eps,
+            inv1me: 1.0 / (1.0 - eps),
+            amax: grid.alpha_max,
+            norm: 1.0 / (grid.supersample * grid.supersample) as f64,
+            dscale: 1.0 / (s2 * (1.0 - eps)),
+        }
+    }
+}
+
+fn dims(grid: &SplatGrid) -> Result<(i32, i32, i32, usize)> {
+    let s = grid.supersample;
+    let sub = (grid.width * s).checked_mul(grid.height * s);
+    match sub {
+        Some(n) if n < i32::MAX as usize => {
+            Ok((grid.width as i32, grid.height as i32, s as i32, n))
+        }
+        _ => Err(Error::param(
+            "size",
+            "the supersampled grid is too large for the GPU splat (over 2^31 pixels)",
+        )),
+    }
+}
+
+fn per_point_launch(n: usize) -> LaunchConfig {
+    LaunchConfig {
+        grid_dim: ((n as u64 * 32).div_ceil(BLOCK as u64) as u32, 1, 1),
+        block_dim: (BLOCK, 1, 1),
+        shared_mem_bytes: 0,
+    }
+}
+
+/// Events recorded between the stages of a call, when profiling.
+type Marks = Option<Vec<(&'static str, cudarc::driver::CudaEvent)>>;
+
+fn mark(st: &CudaStream, marks: &mut Marks, label: &'static str) -> Result<()> {
+    if let Some(m) = marks {
+        let e = st
+            .record_event(Some(cudarc::driver::sys::CUevent_flags::CU_EVENT_DEFAULT))
+            .map_err(driver("recording an event"))?;
+        m.push((label, e));
+    }
+    Ok(())
+}
+
+/// GPU time of each stage of one forward and one backward call on `uv` (milliseconds, in
+/// order: `(stage, ms)`, each stage ending at its label), measured with CUDA events.
+pub fn profile<T: SplatReal>(
+    grid: &SplatGrid,
+    uv: &[[T; 2]],
+    grad_image: &[T],
+) -> Result<Vec<(&'static str, f64)>> {
+    let mut marks: Marks = Some(Vec::new());
+    let (_, state) = forward_marked(grid, uv, &mut marks)?;
+    backward_marked(grid, &state, grad_image, &mut marks)?;
+    let m = marks.expect("profiling");
+    let mut out = Vec::new();
+    for w in m.windows(2) {
+        let ms = w[0]
+            .1
+            .elapsed_ms(&w[1].1)
+            .map_err(driver("reading an event"))?;
+        out.push((w[1].0, ms as f64));
+    }
+    Ok(out)
+}
+
+/// Buffers on the GPU that may be dropped on any thread: the driver frees memory in the
+/// context current on the calling thread, so the context is made current first (a free on a
+/// thread without it fails, and the driver wrapper reports that failure at the next call).
+struct DeviceBuffers<T: GpuScalar> {
+    uv: CudaSlice<T>,
+    trans: Option<CudaSlice<T>>,
+    stream: Arc<CudaStream>,
+}
+
+impl<T: GpuScalar> Drop for DeviceBuffers<T> {
+    fn drop(&mut self) {
+        // Nothing to report to: a failed bind surfaces at the next GPU call.
+        let _ = self.stream.context().bind_to_thread();
+    }
+}
+
+/// What the GPU forward pass keeps for its reverse pass: the points and (coverage) the
+/// transmittance of every supersampled pixel, on the GPU.
+pub struct CudaSplatState<T: GpuScalar> {
+    inner: Arc<DeviceBuffers<T>>,
+    n: usize,
+}
+
+impl<T: GpuScalar> Clone for CudaSplatState<T> {
+    fn clone(&self) -> Self {
+        CudaSplatState {
+            inner: Arc::clone(&self.inner),
+            n: self.n,
+        }
+    }
+}
+
+impl<T: GpuScalar> std::fmt::Debug for CudaSplatState<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "CudaSplatState {{ points: {} }}", self.n)
+    }
+}
+
+/// Forward on the GPU: the pooled image (row-major `height × width`) and the state for the
+/// reverse pass.
+pub fn forward<T: SplatReal>(
+    grid: &SplatGrid,
+    uv: &[[T; 2]],
+) -> Result<(Vec<T>, CudaSplatState<T>)> {
+    forward_marked(grid, uv, &mut None)
+}
+
+fn forward_marked<T: SplatReal>(
+    grid: &SplatGrid,
+    uv: &[[T; 2]],
+    marks: &mut Marks,
+) -> Result<(Vec<T>, CudaSplatState<T>)> {
+    let g = gpu()?;
+    let n = uv.len();
+    if n >= i32::MAX as usize {
+        return Err(Error::param(
+            "trajectories",
+            "too many points for the GPU splat",
+        ));
+    }
+    let (w, h, s, sub) = dims(grid)?;
+    let k = Launch::new(grid);
+    let st = &g.stream;
+    bind(st)?;
+    let mut acc_slot = g
+        .acc
+        .lock()
+        .map_err(|_| device_error("GPU state lock poisoned"))?;
+    if acc_slot.as_ref().is_none_or(|a| a.len() < sub) {
+        *acc_slot = None;
+        *acc_slot = Some(
+            st.alloc_zeros::<i64>(sub)
+                .map_err(driver("allocating the splat grid"))?,
+        );
+    }
+    let acc = acc_slot.as_mut().expect("allocated above");
+    let mut acc_view = acc.slice_mut(0..sub);
+    mark(st, marks, "start")?;
+    st.memset_zeros(&mut acc_view)
+        .map_err(driver("clearing the splat grid"))?;
+    mark(st, marks, "clear the grid")?;
+    let d_uv = st
+        .clone_htod(uv.as_flattened())
+        .map_err(driver("uploading the points"))?;
+    mark(st, marks, "upload the points")?;
+    let f = &g.functions[&format!("splat_forward_{}", T::SUFFIX)];
+    let (gw, gh) = (w * s, h * s);
+    let n32 = n as i32;
+    if n > 0 {
+        let mut b = st.launch_builder(f);
+        b.arg(&d_uv)
+            .arg(&n32)
+            .arg(&mut acc_view)
+            .arg(&gw)
+            .arg(&gh)
+            .arg(&k.coverage)
+            .arg(&k.r)
+            .arg(&k.inv2s2)
+            .arg(&k.eps)
+            .arg(&k.inv1me)
+            .arg(&k.amax);
+        // SAFETY: the arguments match `splat_forward_*`'s signature; `d_uv` holds 2n values
+        // and the grid `gw·gh` accumulators.
+        unsafe { b.launch(per_point_launch(n)) }.map_err(driver("launching splat_forward"))?;
+    }
+    mark(st, marks, "splat (forward kernel)")?;
+    let mut trans = st
+        .alloc_zeros::<T>(if k.coverage == 1 { sub } else { 1 })
+        .map_err(driver("allocating the transmittance"))?;
+    let mut out = st
+        .alloc_zeros::<T>((w * h) as usize)
+        .map_err(driver("allocating the image"))?;
+    let f = &g.functions[&format!("splat_pool_{}", T::SUFFIX)];
+    let mut b = st.launch_builder(f);
+    b.arg(&mut acc_view)
+        .arg(&mut trans)
+        .arg(&mut out)
+        .arg(&w)
+        .arg(&h)
+        .arg(&s)
+        .arg(&k.coverage)
+        .arg(&k.norm);
+    let cfg = LaunchConfig {
+        grid_dim: (((w * h) as u32).div_ceil(BLOCK), 1, 1),
+        block_dim: (BLOCK, 1, 1),
+        shared_mem_bytes: 0,
+    };
+    // SAFETY: the arguments match `splat_pool_*`; `trans` holds `sub` values when coverage.
+    unsafe { b.launch(cfg) }.map_err(driver("launching splat_pool"))?;
+    mark(st, marks, "allocate + transmittance + pool")?;
+    let image = st
+        .clone_dtoh(&out)
+        .map_err(driver("downloading the image"))?;
+    mark(st, marks, "download the image")?;
+    // The grid's lock is released here, after the download has synchronised the stream.
+    drop(acc_slot);
+    let trans = (k.coverage == 1).then_some(trans);
+    Ok((
+        image,
+        CudaSplatState {
+            inner: Arc::new(DeviceBuffers {
+                uv: d_uv,
+                trans,
+                stream: Arc::clone(st),
+            }),
+            n,
+        },
+    ))
+}
+
+/// Reverse on the GPU: `∂L/∂(u, v)` of every point from `∂L/∂image`.
+pub fn backward<T: SplatReal>(
+    grid: &SplatGrid,
+    state: &CudaSplatState<T>,
+    grad_image: &[T],
+) -> Result<Vec<[f64; 2]>> {
+    backward_marked(grid, state, grad_image, &mut None)
+}
+
+fn backward_marked<T: SplatReal>(
+    grid: &SplatGrid,
+    state: &CudaSplatState<T>,
+    grad_image: &[T],
+    marks: &mut Marks,
+) -> Result<Vec<[f64; 2]>> {
+    let g = gpu()?;
+    let (w, h, s, _) = dims(grid)?;
+    let k = Launch::new(grid);
+    let n = state.n;
+    if n == 0 {
+        return Ok(Vec::new());
+    }
+    let (d_uv, trans) = (&state.inner.uv, &state.inner.trans);
+    if (trans.is_some()) != (k.coverage == 1) {
+        return Err(Error::Shape(
+            "the GPU tape was recorded with another blend mode".into(),
+        ));
+    }
+    let st = &g.stream;
+    bind(st)?;
+    let d_grad = st
+        .clone_htod(grad_image)
+        .map_err(driver("uploading the image gradient"))?;
+    mark(st, marks, "upload the image gradient")?;
+    let dummy;
+    let trans = match trans {
+        Some(t) => t,
+        None => {
+            dummy = st.alloc_zeros::<T>(1).map_err(driver("allocating"))?;
+            &dummy
+        }
+    };
+    let mut guv = st
+        .alloc_zeros::<T>(2 * n)
+        .map_err(driver("allocating the point gradients"))?;
+    let f = &g.functions[&format!("splat_backward_{}", T::SUFFIX)];
+    let n32 = n as i32;
+    let mut b = st.launch_builder(f);
+    b.arg(d_uv)
+        .arg(&n32)
+        .arg(trans)
+        .arg(&d_grad)
+        .arg(&mut guv)
+        .arg(&w)
+        .arg(&h)
+        .arg(&s)
+        .arg(&k.coverage)
+        .arg(&k.r)
+        .arg(&k.inv2s2)
+        .arg(&k.eps)
+        .arg(&k.inv1me)
+        .arg(&k.amax)
+        .arg(&k.norm)
+        .arg(&k.dscale);
+    // SAFETY: the arguments match `splat_backward_*`; `grad_image` is `w·h` values (checked
+    // by the caller), `guv` 2n.
+    unsafe { b.launch(per_point_launch(n)) }.map_err(driver("launching splat_backward"))?;
+    mark(st, marks, "backward kernel")?;
+    let flat = st
+        .clone_dtoh(&guv)
+        .map_err(driver("downloading the point gradients"))?;
+    mark(st, marks, "download the point gradients")?;
+    Ok(flat
+        .chunks_exact(2)
+        .map(|p| [p[0].to_f64().unwrap_or(0.0), p[1].to_f64().unwrap_or(0.0)])
+        .collect())
+}
