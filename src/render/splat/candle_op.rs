@@ -11,8 +11,10 @@
 //!
 //! The op keeps its forward tape so `bwd` runs the hand-written reverse pass, and returns
 //! the gradient in the argument's shape; F32 and F64 tensors are supported on the CPU.
-//! `cuda_fwd` keeps candle's default "not supported" until a kernel lands behind a `cuda`
-//! feature.
+//! The GPU backend (`cuda` feature, `SplatConfig::device`) runs inside `cpu_fwd`/`bwd`: the
+//! tensors stay on candle's CPU device (candle's own CUDA device needs nvcc to build), the
+//! points and the image cross to and from the GPU in the op. `cuda_fwd` keeps candle's
+//! default "not supported".
 
 use std::sync::Mutex;
 

@@ -38,7 +38,8 @@
 //!
 //! [`SplatOp`] wraps the fused op as a candle `CustomOp1` (affine maps `(n, 6)`, or the
 //! parameters of any [`DiffMap2`] maps, → image `(H, W)`) so image losses compose as candle
-//! tensors and a GPU kernel can plug into `cuda_fwd`.
+//! tensors; with `device = "cuda"` in its config the op's splat runs on the GPU while its
+//! tensors stay on the CPU.
 //!
 //! ## References
 //! - Djeacoumar et al., *Learning Image Fractals Using Chaotic Differentiable Point Splatting*.
