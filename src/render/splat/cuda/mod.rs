@@ -1,7 +1,7 @@
 //! The splat kernel on an NVIDIA GPU (`device = "cuda"`, the `cuda` feature).
 //!
 //! The chaos game, the framing and the reverse scan through the trajectories stay on the CPU
-//! (measured at the paper's setting on a 16-core host: 1.5 ms for the chaos game, about 5 ms
+//! (measured at the paper's setting on a 16-core host: 1.5 ms for the chaos game, about 7 ms
 //! for all three); what the GPU does is the splat —
 //! Gaussian footprints on the supersampled grid, blending, pooling — and its reverse pass to
 //! per-point gradients, which are nearly all of an iteration's time on the CPU. Per call the
