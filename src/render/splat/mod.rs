@@ -84,7 +84,7 @@ impl SplatDevice {
         match self {
             SplatDevice::Cpu => Ok(()),
             #[cfg(feature = "cuda")]
-            SplatDevice::Cuda => cuda::describe().map(|_| ()),
+            SplatDevice::Cuda => cuda::available(),
             #[cfg(not(feature = "cuda"))]
             SplatDevice::Cuda => Err(Error::Device(
                 "device = \"cuda\" needs a build with the GPU backend: \

@@ -71,6 +71,12 @@ fn gpu() -> Result<&'static Gpu> {
         .map_err(|e| device_error(e.clone()))
 }
 
+/// `Ok` when the GPU backend is ready (driver, GPU, kernels compiled), else why not. Cheap
+/// after the first call: every `SplatConfig::validate` asks.
+pub fn available() -> Result<()> {
+    gpu().map(|_| ())
+}
+
 /// The GPU the splat runs on (`"NVIDIA H100 80GB HBM3 (compute 9.0)"`), or why there is none.
 pub fn describe() -> Result<String> {
     let g = gpu()?;
