@@ -231,14 +231,24 @@ fn weights<T: Float>(
 #[doc(hidden)]
 #[derive(Clone, Copy)]
 pub struct Consts<T> {
-    inv2s2: T,
+    pub(super) inv2s2: T,
     q: T,
-    eps: T,
-    inv1me: T,
-    amax: T,
+    pub(super) eps: T,
+    pub(super) inv1me: T,
+    pub(super) amax: T,
     tmin: T,
-    dscale: T,
-    norm: T,
+    pub(super) dscale: T,
+    pub(super) norm: T,
+}
+
+impl SplatGrid {
+    /// The footprint's constants in f64 and its radius in supersampled pixels: what the GPU
+    /// kernels take, computed as the CPU kernel computes them.
+    #[cfg(feature = "cuda")]
+    pub(super) fn footprint_constants(&self) -> (Consts<f64>, f64) {
+        let g = self.geometry();
+        (Consts::new(self, &g), g.r)
+    }
 }
 
 impl<T: Float> Consts<T> {

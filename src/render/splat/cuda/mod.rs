@@ -187,18 +187,18 @@ struct Launch {
 }
 
 impl Launch {
+    /// The CPU kernel's constants (`SplatGrid::footprint_constants`), as kernel arguments.
     fn new(grid: &SplatGrid) -> Self {
-        let eps = (-0.5 * grid.radius * grid.radius).exp();
-        let s2 = grid.sigma * grid.sigma;
+        let (k, r) = grid.footprint_constants();
         Launch {
             coverage: i32::from(grid.blend == Blend::Coverage),
-            r: grid.radius * grid.sigma,
-            inv2s2: 0.5 / s2,
-            eps,
-            inv1me: 1.0 / (1.0 - eps),
-            amax: grid.alpha_max,
-            norm: 1.0 / (grid.supersample * grid.supersample) as f64,
-            dscale: 1.0 / (s2 * (1.0 - eps)),
+            r,
+            inv2s2: k.inv2s2,
+            eps: k.eps,
+            inv1me: k.inv1me,
+            amax: k.amax,
+            norm: k.norm,
+            dscale: k.dscale,
         }
     }
 }
