@@ -285,6 +285,38 @@ fn any_registered_strategy_runs_from_a_config() {
     assert!(log.lines().next().unwrap().contains("grad_norm"), "{log}");
     assert_eq!(log.lines().count(), 5, "{log}");
 
+    // The same config with keys overridden on the command line: the run and its written
+    // config follow the overrides; a misspelt one is named.
+    let out = tmp.path().join("run_set");
+    let (ok, msg) = ifslab(&[
+        "run",
+        cfg.to_str().unwrap(),
+        "--set",
+        "iterations=2",
+        "--set",
+        "strategy.momentum=0.25",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{msg}");
+    let written = std::fs::read_to_string(out.join("config.toml")).unwrap();
+    assert!(
+        written.contains("iterations = 2") && written.contains("momentum = 0.25"),
+        "{written}"
+    );
+    let log = std::fs::read_to_string(out.join("log.csv")).unwrap();
+    assert_eq!(log.lines().count(), 3, "{log}");
+    let o = tmp.path().join("bad_set");
+    let (ok, msg) = ifslab(&[
+        "run",
+        cfg.to_str().unwrap(),
+        "--set",
+        "strategy.momentun=0.25",
+        "-o",
+        o.to_str().unwrap(),
+    ]);
+    assert!(!ok && msg.contains("momentun") && !o.exists(), "{msg}");
+
     for (strategy, want) in [
         (
             "kind = \"no_such_strategy\"\n",

@@ -17,10 +17,16 @@ pub struct Args {
     /// run again).
     #[arg(long)]
     pub resume: bool,
+    /// Override a config key before the config is validated (repeatable; dotted keys):
+    /// `--set renderer.device=cuda --set iterations=100`. A value is read as TOML
+    /// (numbers, booleans, arrays, quoted strings) and otherwise as a string. A resumed run
+    /// needs the same overrides.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let cfg = RunConfig::load(&a.config)?;
+    let cfg = RunConfig::load_with(&a.config, &a.set)?;
     let dir = cfg.output_dir(a.output, "out/run");
     let r = cfg.run(
         &dir,

@@ -110,9 +110,26 @@ impl RunConfig {
 
     /// Reads and validates a config file.
     pub fn load(path: &Path) -> anyhow::Result<Self> {
+        RunConfig::load_with(path, &[])
+    }
+
+    /// Reads a config file, applies `overrides` (`KEY=VALUE` with dotted keys, as
+    /// `ifslab run --set` takes them: `renderer.device=cuda`, `iterations=100`) and validates
+    /// the result, so an override is checked like the file's own keys. A value is read as a
+    /// TOML value (`100`, `0.5`, `true`, `[1, 2]`, `"text"`) and otherwise as a string; file
+    /// names in an override are read, like the file's own, from the config's folder.
+    pub fn load_with(path: &Path, overrides: &[String]) -> anyhow::Result<Self> {
         let text =
             std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-        RunConfig::from_toml(&text, path)
+        let mut table: toml::Table = text
+            .parse()
+            .with_context(|| format!("{} is not valid TOML", path.display()))?;
+        for o in overrides {
+            let (key, value) = parse_override(o)?;
+            crate::sweep::expand::set_dotted(&mut table, &key, value)
+                .with_context(|| format!("applying `--set {o}`"))?;
+        }
+        RunConfig::from_table(table, path)
     }
 
     /// The LPIPS weights file this run would use but which is not there: an image run whose
@@ -239,6 +256,27 @@ impl RunConfig {
     }
 }
 
+/// One `KEY=VALUE` override: the dotted key and its value, read as a TOML value where it is
+/// one (`3`, `0.5`, `true`, `"a b"`, `[1, 2]`) and as a string otherwise (`cuda`, `fern`).
+pub fn parse_override(s: &str) -> anyhow::Result<(String, toml::Value)> {
+    let Some((key, value)) = s.split_once('=') else {
+        bail!("`{s}` is not KEY=VALUE (e.g. renderer.device=cuda)");
+    };
+    let key = key.trim();
+    if key.is_empty() || key.split('.').any(str::is_empty) {
+        bail!("`{s}`: `{key}` is not a dotted config key");
+    }
+    let value = value.trim();
+    let parsed = format!("v = {value}")
+        .parse::<toml::Table>()
+        .ok()
+        .and_then(|mut t| t.remove("v"));
+    Ok((
+        key.to_string(),
+        parsed.unwrap_or_else(|| toml::Value::String(value.to_string())),
+    ))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -283,6 +321,64 @@ mod tests {
         assert_eq!(t["update"].as_str(), Some("outermost"));
         assert_eq!(t["reorient"].as_integer(), Some(0));
         assert_eq!(t["recentre"].as_bool(), Some(false));
+    }
+
+    #[test]
+    fn overrides_are_typed_applied_and_validated_like_the_files_own_keys() {
+        for (arg, want) in [
+            ("iterations=100", toml::Value::Integer(100)),
+            ("renderer.sigma = 0.5", toml::Value::Float(0.5)),
+            ("model.fixed_probabilities=true", toml::Value::Boolean(true)),
+            ("renderer.device=cuda", toml::Value::String("cuda".into())),
+            (
+                "target.image=\"a b.png\"",
+                toml::Value::String("a b.png".into()),
+            ),
+            (
+                "target.image=dir/a=b.png",
+                toml::Value::String("dir/a=b.png".into()),
+            ),
+        ] {
+            let (_, v) = parse_override(arg).unwrap();
+            assert_eq!(v, want, "{arg}");
+        }
+        for bad in ["iterations", "=3", "renderer..sigma=1", ".x=1"] {
+            assert!(parse_override(bad).is_err(), "{bad}");
+        }
+
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("s.toml");
+        std::fs::write(&path, SIERPINSKI).unwrap();
+        let sets = |s: &[&str]| s.iter().map(|x| x.to_string()).collect::<Vec<_>>();
+        let RunConfig::Image(c) = RunConfig::load_with(
+            &path,
+            &sets(&["iterations=7", "strategy.adam.lr=0.02", "target.size=64"]),
+        )
+        .unwrap() else {
+            panic!("an image config")
+        };
+        assert_eq!((c.iterations, c.target.size), (7, 64));
+        assert_eq!(c.strategy.name(), "cold_hybrid", "siblings are left alone");
+        let base = RunConfig::load(&path).unwrap();
+        let RunConfig::Image(b) = &base else { panic!() };
+        assert_eq!(b.iterations, 800);
+        // A misspelt or ill-typed override is refused by the same checks as the file.
+        for (o, want) in [
+            ("renderr.sigma=1", "renderr"),
+            ("renderer.sigma=-1", "renderer.sigma"),
+            ("iterations=lots", "iterations"),
+            ("seed.x=1", "`seed` is"),
+        ] {
+            let e = RunConfig::load_with(&path, &sets(&[o])).unwrap_err();
+            assert!(format!("{e:#}").contains(want), "{o}: {e:#}");
+        }
+        // The device is a key like any other: a build without the GPU backend says how to
+        // get one.
+        #[cfg(not(feature = "cuda"))]
+        {
+            let e = RunConfig::load_with(&path, &sets(&["renderer.device=cuda"])).unwrap_err();
+            assert!(format!("{e:#}").contains("--features cuda"), "{e:#}");
+        }
     }
 
     #[test]
