@@ -430,6 +430,27 @@ values = ["adam", "cold_hybrid"]
     assert_eq!(agg.groups[0].0, ["adam"]);
     assert!(c.aggregate(&["nope".to_string()]).is_err());
 
+    // Paired: cold_hybrid against adam target by target; the corrupt target pairs nothing.
+    let (by, on) = (vec!["strategy".to_string()], vec!["target".to_string()]);
+    let pd = c.paired(&by, &on, "adam", "iou").unwrap();
+    assert_eq!(pd.rows.len(), 1);
+    let r = &pd.rows[0];
+    assert_eq!((r.group.as_str(), r.pairs), ("cold_hybrid", 2));
+    let d = [iou(1) - iou(0), iou(5) - iou(4)];
+    assert!((r.mean_difference - (d[0] + d[1]) / 2.0).abs() < 1e-12);
+    assert!((r.standard_error - (d[0] - d[1]).abs() / 2.0).abs() < 1e-12);
+    assert_eq!(r.higher, d.iter().filter(|x| **x > 0.0).count());
+    assert_eq!(r.lower, d.iter().filter(|x| **x < 0.0).count());
+    assert_eq!(r.higher + r.lower + r.equal, 2);
+    assert!(
+        c.paired(&by, &by, "adam", "iou").is_err(),
+        "pairing on the grouping axis"
+    );
+    assert!(
+        c.paired(&by, &on, "nope", "iou").is_err(),
+        "an unknown reference"
+    );
+
     // The report: tables, plots, picture grid.
     let report_dir = tmp.path().join("report");
     let opts = ReportOptions {
@@ -437,10 +458,16 @@ values = ["adam", "cold_hybrid"]
             vec!["strategy".into()],
             vec!["target".into(), "strategy".into()],
         ],
+        versus: Some("adam".into()),
         ..Default::default()
     };
     let report = write_report(&c, &report_dir, &opts).unwrap();
     let md = std::fs::read_to_string(report).unwrap();
+    assert!(
+        md.contains("### Paired against adam") && md.contains("Runs paired on target"),
+        "{md}"
+    );
+    assert!(md.contains("| cold_hybrid | 2 |"), "{md}");
     assert!(md.contains("6 runs: 4 finished, 2 failed"), "{md}");
     assert!(md.contains("## By target × strategy"), "{md}");
     assert!(md.contains("| a_good | cold_hybrid |"), "{md}");
@@ -449,6 +476,7 @@ values = ["adam", "cold_hybrid"]
         "results.json",
         "aggregate_strategy.csv",
         "aggregate_target_strategy.csv",
+        "paired_strategy.csv",
         "iou_by_strategy.png",
         "loss_by_strategy.png",
         "pictures.png",
@@ -468,6 +496,12 @@ values = ["adam", "cold_hybrid"]
         ..Default::default()
     };
     assert!(write_report(&c, &report_dir, &bad_metric).is_err());
+    let bad_reference = ReportOptions {
+        versus: Some("nope".into()),
+        ..Default::default()
+    };
+    let e = write_report(&c, &report_dir, &bad_reference).unwrap_err();
+    assert!(format!("{e:#}").contains("adam"), "{e:#}");
 }
 
 #[test]

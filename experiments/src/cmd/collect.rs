@@ -23,6 +23,15 @@ pub struct Args {
     /// At most this many runs in the picture grid.
     #[arg(long, default_value_t = 48)]
     pub max_pictures: usize,
+    /// Compare every group with this one run by run (labels joined with `/` for a
+    /// combination, e.g. `ours_em_sched`): pairs, higher/lower counts, mean difference ±
+    /// standard error, sign test, per metric, under each grouping that has it.
+    #[arg(long)]
+    pub versus: Option<String>,
+    /// The axes that pair runs for `--versus` (comma-separated). Default: every varying
+    /// axis the grouping leaves out (a suite's `index`).
+    #[arg(long, value_delimiter = ',')]
+    pub pair_on: Vec<String>,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -36,6 +45,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             .collect(),
         metrics: a.metric,
         max_pictures: a.max_pictures,
+        versus: a.versus,
+        pair_on: a.pair_on,
     };
     let report = write_report(&c, &out, &opts)?;
     let (finished, failed, interrupted, missing) = c.counts();

@@ -18,6 +18,7 @@ use serde_json::{Map, Value};
 
 use super::expand::PlanIndex;
 use super::local::{ERROR_FILE, PLAN_FILE, RECORD_FILE, RUNS_DIR, RunRecord, partial_dir, run_dir};
+use super::paired::Paired;
 use crate::plot::{Series, category_chart, ensure_font, line_chart};
 
 /// Columns that measure wall time, not results: the only ones that differ between two
@@ -572,6 +573,12 @@ pub struct ReportOptions {
     pub metrics: Vec<String>,
     /// At most this many runs in the picture grid (0: 48).
     pub max_pictures: usize,
+    /// A group (labels joined with `/`) to compare every other group of its grouping with,
+    /// run by run ([`Paired`]): each grouping that has it gets a paired table per metric.
+    pub versus: Option<String>,
+    /// The axes that pair runs for `versus`; empty: every varying axis the grouping leaves
+    /// out (the suite code of a table, say).
+    pub pair_on: Vec<String>,
 }
 
 /// Writes `results.csv`, `results.json`, `aggregate_*.csv`, the plots and `report.md` into
@@ -624,6 +631,31 @@ pub fn write_report(c: &Collected, out: &Path, opts: &ReportOptions) -> anyhow::
         opts.metrics.clone()
     };
 
+    let pair_on = |group: &[String]| -> Vec<String> {
+        if opts.pair_on.is_empty() {
+            c.varying_axes()
+                .into_iter()
+                .filter(|a| !group.contains(a))
+                .collect()
+        } else {
+            opts.pair_on.clone()
+        }
+    };
+    if let Some(reference) = &opts.versus
+        && !by
+            .iter()
+            .any(|g| c.keys_of(g).is_ok_and(|k| k.contains(reference)))
+    {
+        bail!(
+            "--versus {reference}: no grouping has that group (groups: {})",
+            by.iter()
+                .filter_map(|g| c.keys_of(g).ok())
+                .flatten()
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+
     let (finished, failed, interrupted, missing) = c.counts();
     let mut md = format!("# Sweep `{}`\n\n", c.name);
     let _ = writeln!(
@@ -665,6 +697,27 @@ pub fn write_report(c: &Collected, out: &Path, opts: &ReportOptions) -> anyhow::
         let _ = writeln!(md, "## By {}\n", group.join(" × "));
         md.push_str(&agg.to_markdown(&tabled));
         md.push('\n');
+        if let Some(reference) = &opts.versus
+            && c.keys_of(group)?.contains(reference)
+        {
+            let on = pair_on(group);
+            let _ = writeln!(
+                md,
+                "### Paired against {reference}\n\nRuns paired on {}: on how many pairs each \
+                 group scores higher, lower or the same as {reference}, the mean difference \
+                 ± its standard error, and the two-sided sign test (ties left out).\n",
+                on.join(" × ")
+            );
+            let mut csv = Paired::CSV_HEADER.to_string();
+            for m in tabled.iter().filter(|m| !wall(m)) {
+                let p = c.paired(group, &on, reference, m)?;
+                let _ = writeln!(md, "**{m}**\n");
+                md.push_str(&p.to_markdown());
+                md.push('\n');
+                csv.push_str(&p.to_csv_rows());
+            }
+            write(&format!("paired_{}.csv", file_word(&tag)), csv.as_bytes())?;
+        }
         // Plots: one category per combination of the group's labels ("random/adam").
         let cats = c.keys_of(group)?;
         let tag = file_word(&group.join("+"));

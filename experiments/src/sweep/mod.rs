@@ -19,6 +19,7 @@ pub mod collect;
 pub mod config;
 pub mod expand;
 pub mod local;
+pub mod paired;
 pub mod shard;
 pub mod slurm;
 
