@@ -87,7 +87,11 @@ pub struct Args {
     /// budgets rarely recovers a fractal).
     #[arg(long, default_value = "em")]
     pub init: String,
-    /// The target is a dark shape on a light background (default: decide from the border).
+    /// Which way round the target's shape is drawn: auto (decide from the border),
+    /// bright-on-dark or dark-on-light.
+    #[arg(long, default_value = "auto", conflicts_with = "dark_on_light")]
+    pub polarity: Polarity,
+    /// Short for --polarity dark-on-light.
     #[arg(long)]
     pub dark_on_light: bool,
 }
@@ -128,7 +132,7 @@ fn config_from_flags(a: &Args) -> anyhow::Result<InversionConfig> {
         polarity: if a.dark_on_light {
             Polarity::DarkOnLight
         } else {
-            Polarity::Auto
+            a.polarity
         },
     };
     let init = match a.init.as_str() {

@@ -11,7 +11,7 @@ use ifslab::render::image_io::{BitDepth, save_grey_png};
 use ifslab::render::sdf::{SdfRaster, SdfRenderConfig, SdfView, WordTree};
 use ifslab_experiments::runs::RunConfig;
 use ifslab_strategies::optim::adam::AdamConfig;
-use ifslab_strategies::problems::image::StrategyConfig;
+use ifslab_strategies::problems::image::{Polarity, StrategyConfig};
 use ifslab_strategies::problems::sdf::{SdfConfig, SdfInit};
 
 #[derive(clap::Args, Debug)]
@@ -35,6 +35,10 @@ pub struct FitArgs {
     /// A built-in pattern (koch, carpet, carpet-square) or a pattern file (.json).
     #[arg(long, default_value = "koch")]
     pub pattern: String,
+    /// Which way round the target's shape is drawn: auto (decide from the border),
+    /// bright-on-dark or dark-on-light.
+    #[arg(long, default_value = "auto")]
+    pub polarity: Polarity,
     /// Recursion depth K.
     #[arg(long, default_value_t = 5)]
     pub depth: usize,
@@ -120,6 +124,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
 fn fit(a: FitArgs) -> anyhow::Result<()> {
     let mut cfg = SdfConfig::new(a.target, a.pattern);
     cfg.depth = a.depth;
+    cfg.polarity = a.polarity;
     cfg.size = a.size;
     cfg.sigma = a.sigma;
     cfg.sigma_start = a.sigma_start;

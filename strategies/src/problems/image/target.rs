@@ -32,6 +32,23 @@ pub enum Polarity {
     DarkOnLight,
 }
 
+impl std::str::FromStr for Polarity {
+    type Err = Error;
+
+    /// `auto`, `bright-on-dark` or `dark-on-light` (`_` for `-` as in configs).
+    fn from_str(s: &str) -> Result<Self> {
+        match s.replace('_', "-").as_str() {
+            "auto" => Ok(Self::Auto),
+            "bright-on-dark" => Ok(Self::BrightOnDark),
+            "dark-on-light" => Ok(Self::DarkOnLight),
+            _ => Err(Error::param(
+                "polarity",
+                format!("`{s}` is not one of auto, bright-on-dark, dark-on-light"),
+            )),
+        }
+    }
+}
+
 /// Pixels above this fraction of the brightest one count as foreground for framing.
 const FOREGROUND: f32 = 0.1;
 
@@ -110,7 +127,8 @@ pub fn frame_target(img: &Image, size: usize, polarity: Polarity) -> Result<Vec<
     if bw * bh == w * h && polarity == Polarity::Auto && border_mean > 0.05 && border_mean < 0.95 {
         return Err(Error::InvalidInput(
             "the target has no background: its shape touches every border; give a picture of \
-             a shape on a plain background, or set the polarity explicitly"
+             a shape on a plain background, or say which way round it is drawn (`--polarity \
+             bright-on-dark` or `dark-on-light` on the command line, `polarity` in a config)"
                 .into(),
         ));
     }
@@ -229,5 +247,25 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("all black"), "{e}");
+    }
+
+    #[test]
+    fn a_picture_without_background_names_the_polarity_setting_and_honours_it() {
+        // A grey gradient over the whole frame: no border colour to take as background.
+        let photo = image(40, 40, |x, y| 0.2 + 0.6 * (x + y) as f32 / 78.0);
+        let e = frame_target(&photo, 32, Polarity::Auto)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("no background") && e.contains("--polarity"),
+            "{e}"
+        );
+        // Said explicitly, the same picture is framed, and the two ways round differ.
+        let bright = frame_target(&photo, 32, "bright-on-dark".parse().unwrap()).unwrap();
+        let dark = frame_target(&photo, 32, "dark_on_light".parse().unwrap()).unwrap();
+        assert_ne!(bright, dark);
+        assert_eq!("auto".parse::<Polarity>().unwrap(), Polarity::Auto);
+        let e = "sideways".parse::<Polarity>().unwrap_err().to_string();
+        assert!(e.contains("sideways") && e.contains("dark-on-light"), "{e}");
     }
 }
