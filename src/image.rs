@@ -119,6 +119,29 @@ impl Image {
         Image::new(w as u32, h as u32, c as u32, values)
     }
 
+    /// Reads any file the `image` crate reads as four planes, RGB and alpha, nothing
+    /// composited (alpha 1 where the file has none): for loaders that decide themselves what
+    /// a transparent pixel means.
+    pub fn load_rgba(path: &Path) -> Result<Self> {
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let img = image::load_from_memory(&bytes).map_err(|e| Error::Image {
+            path: path.to_owned(),
+            message: format!("not a readable image ({e})"),
+        })?;
+        let rgba = img.to_rgba32f();
+        let (width, height) = rgba.dimensions();
+        if width == 0 || height == 0 {
+            return Err(Error::Image {
+                path: path.to_owned(),
+                message: "image has no pixels".into(),
+            });
+        }
+        let values: Vec<f32> = (0..4)
+            .flat_map(|c| rgba.pixels().map(move |p| p.0[c].clamp(0.0, 1.0)))
+            .collect();
+        Image::new(width, height, 4, values)
+    }
+
     /// Reads any file the `image` crate reads, as grey (luma, alpha composited onto white)
     /// or, with `rgb`, as three planes (alpha composited onto white).
     pub fn load(path: &Path, rgb: bool) -> Result<Self> {
@@ -194,6 +217,71 @@ impl Image {
             other => other,
         })?;
         write_atomic(path, &bytes)
+    }
+}
+
+/// The exact Euclidean distance, in pixels, from every pixel centre of a `width × height`
+/// image to the nearest pixel set in `mask` (0 on those), by the separable lower-envelope
+/// algorithm of Felzenszwalb & Huttenlocher (columns, then rows); `None` when `mask` has no
+/// pixel set or does not have `width × height` entries.
+pub fn distance_to(mask: &[bool], width: usize, height: usize) -> Option<Vec<f64>> {
+    if mask.len() != width * height || !mask.iter().any(|&m| m) {
+        return None;
+    }
+    const FAR: f64 = 1e20;
+    let mut f: Vec<f64> = mask.iter().map(|&m| if m { 0.0 } else { FAR }).collect();
+    let mut col = vec![0.0; height];
+    let mut out = vec![0.0; height.max(width)];
+    for j in 0..width {
+        for i in 0..height {
+            col[i] = f[i * width + j];
+        }
+        squared_1d(&col, &mut out[..height]);
+        for i in 0..height {
+            f[i * width + j] = out[i];
+        }
+    }
+    let mut row = vec![0.0; width];
+    for i in 0..height {
+        row.copy_from_slice(&f[i * width..(i + 1) * width]);
+        squared_1d(&row, &mut out[..width]);
+        for j in 0..width {
+            f[i * width + j] = out[j].sqrt();
+        }
+    }
+    Some(f)
+}
+
+/// `out[q] = min_p (q − p)² + f[p]`: the 1-D squared distance transform.
+fn squared_1d(f: &[f64], out: &mut [f64]) {
+    let n = f.len();
+    let mut v = vec![0usize; n];
+    let mut z = vec![0.0f64; n + 1];
+    let mut k = 0usize;
+    z[0] = f64::NEG_INFINITY;
+    z[1] = f64::INFINITY;
+    for q in 1..n {
+        loop {
+            let p = v[k];
+            let s = ((f[q] + (q * q) as f64) - (f[p] + (p * p) as f64)) / (2.0 * (q - p) as f64);
+            if s <= z[k] && k > 0 {
+                k -= 1;
+                continue;
+            }
+            k += 1;
+            v[k] = q;
+            z[k] = s;
+            z[k + 1] = f64::INFINITY;
+            break;
+        }
+    }
+    k = 0;
+    for (q, o) in out.iter_mut().enumerate() {
+        while z[k + 1] < q as f64 {
+            k += 1;
+        }
+        let d = q as f64 - v[k] as f64;
+        *o = d * d + f[v[k]];
     }
 }
 

@@ -132,6 +132,31 @@ fn quick_inversion_writes_every_output_and_resumes() {
         assert!(out.join(f).is_file(), "{f} missing");
     }
     ifslab::model::IfsCode::load(out.join("code.json")).unwrap();
+    // The defaults are ifslab's recipe, written out; `--paper` is the paper's.
+    let cfg = std::fs::read_to_string(out.join("config.toml")).unwrap();
+    for want in [
+        "paper = false",
+        "init = \"em\"",
+        "em_reflections = true",
+        "sigma_final = 0.4",
+        "kind = \"cold_hybrid\"",
+    ] {
+        assert!(cfg.contains(want), "{want}: {cfg}");
+    }
+    let paper = tmp.path().join("paper").to_string_lossy().into_owned();
+    let mut paper_args = args.to_vec();
+    *paper_args.last_mut().unwrap() = &paper;
+    paper_args.push("--paper");
+    let (ok, msg) = ifslab(&paper_args);
+    assert!(ok, "{msg}");
+    let cfg = std::fs::read_to_string(Path::new(&paper).join("config.toml")).unwrap();
+    for want in ["paper = true", "init = \"random\"", "kind = \"hybrid\""] {
+        assert!(cfg.contains(want), "{want}: {cfg}");
+    }
+    assert!(
+        !cfg.contains("sigma_final") && !cfg.contains("em_reflections"),
+        "{cfg}"
+    );
     // A second fresh run into the same folder is refused; --resume continues (already done).
     let (ok, msg) = ifslab(&args);
     assert!(!ok && msg.contains("--resume"), "{msg}");
@@ -649,6 +674,97 @@ fn sdf_fit_and_render_end_to_end() {
     );
     let (ok, msg) = ifslab(&["sdf", "fit", &p("k.png"), "--sigma", "0", "-o", &p("y")]);
     assert!(!ok && msg.contains("sigma"), "{msg}");
+}
+
+/// The picture a user reported refused: a Koch-like curve with a taller peak drawn as a
+/// thin anti-aliased line, its brightest pixel 0.53, none left at half ink once resampled to
+/// the fit's size. At the defaults it is accepted and fitted (the paper's recipe is one flag
+/// away and still runs); a uniform picture is refused saying why.
+#[test]
+fn a_thin_faint_curve_is_accepted_and_fitted_at_the_defaults() {
+    let tmp = tempfile::tempdir().unwrap();
+    let p = |name: &str| tmp.path().join(name).to_string_lossy().into_owned();
+    let h = 0.42;
+    std::fs::write(
+        p("tall.json"),
+        format!(
+            r#"{{"format": "ifslab-pattern/1", "name": "tall",
+               "points": [[0, 0], [0.3333, 0], [0.5, {h}], [0.6667, 0], [1, 0]],
+               "pairs": [{{"source": [0, 4], "target": [0, 1]}}, {{"source": [0, 4], "target": [1, 2]}},
+                         {{"source": [0, 4], "target": [2, 3]}}, {{"source": [0, 4], "target": [3, 4]}}]}}"#
+        ),
+    )
+    .unwrap();
+    let (ok, msg) = ifslab(&[
+        "sdf",
+        "render",
+        &p("tall.json"),
+        "--size",
+        "256",
+        "--depth",
+        "5",
+        "--sigma",
+        "0.45",
+        "-o",
+        &p("drawn.png"),
+    ]);
+    assert!(ok, "{msg}");
+    // Dimmed to a brightest pixel of 0.53, bright on black.
+    let img = image::open(p("drawn.png")).unwrap().to_luma8();
+    let dark = img.pixels().filter(|q| q.0[0] > 128).count() > img.len() / 2;
+    let faint = image::GrayImage::from_fn(img.width(), img.height(), |x, y| {
+        let v = img.get_pixel(x, y).0[0] as f32 / 255.0;
+        let ink = if dark { 1.0 - v } else { v };
+        image::Luma([(ink * 0.53 * 255.0).round() as u8])
+    });
+    faint.save(p("thin.png")).unwrap();
+    let max = faint.pixels().map(|q| q.0[0]).max().unwrap();
+    assert!((130..=136).contains(&max), "brightest {max}");
+    let truth = p("tall.json");
+    let (ok, msg) = ifslab(&[
+        "sdf",
+        "fit",
+        &p("thin.png"),
+        "--truth",
+        &truth,
+        "-o",
+        &p("fit"),
+    ]);
+    assert!(ok, "{msg}");
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(p("fit/summary.json")).unwrap()).unwrap();
+    // The shape is recovered: the fit against the pattern that drew it, both drawn alike
+    // (the pixel IoU against a line this thin is a score of its width, not of its shape).
+    assert!(s["truth_iou"].as_f64().unwrap() >= 0.8, "{s}");
+    let cfg = std::fs::read_to_string(p("fit/config.toml")).unwrap();
+    assert!(
+        cfg.contains("kind = \"best\"") && cfg.contains("paper = false"),
+        "{cfg}"
+    );
+    let reading = std::fs::read_to_string(p("fit/target.json")).unwrap();
+    assert!(reading.contains("\"stroke\""), "{reading}");
+    // The paper's recipe runs on it too (its start and σ, not its old refusal).
+    let (ok, msg) = ifslab(&["sdf", "fit", &p("thin.png"), "--paper", "-o", &p("paper")]);
+    assert!(ok, "{msg}");
+    let cfg = std::fs::read_to_string(p("paper/config.toml")).unwrap();
+    assert!(
+        cfg.contains("paper = true") && cfg.contains("kind = \"line\""),
+        "{cfg}"
+    );
+    // A uniform picture says it is empty.
+    image::GrayImage::from_pixel(64, 48, image::Luma([200]))
+        .save(p("grey.png"))
+        .unwrap();
+    for cmd in [&["sdf", "fit"][..], &["invert"][..]] {
+        let mut args = cmd.to_vec();
+        let (grey, out) = (p("grey.png"), p("empty"));
+        args.extend_from_slice(&[&grey, "-o", &out]);
+        let (ok, msg) = ifslab(&args);
+        assert!(
+            !ok && msg.contains("empty") && msg.contains("no shape to fit"),
+            "{cmd:?}: {msg}"
+        );
+    }
 }
 
 /// `ifslab landscape` on a segment-map fit: a slice through the pattern's own points and one

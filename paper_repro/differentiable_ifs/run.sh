@@ -31,7 +31,7 @@ mkdir -p "$OUT/fig2"
 fit() { # name target args…
   local name="$1" target="$2"
   shift 2
-  "$BIN" sdf fit "$target" -o "$WORK/$name" "$@" | tee -a "$OUT/fig2/fits.txt"
+  "$BIN" sdf fit "$target" --paper -o "$WORK/$name" "$@" | tee -a "$OUT/fig2/fits.txt"
   cp "$WORK/$name/summary.json" "$OUT/fig2/$name.summary.json"
   cp "$WORK/$name/pattern.json" "$OUT/fig2/$name.pattern.json"
   "$T/examples/side_by_side" "$OUT/fig2/$name.png" "$WORK/$name/target.png" "$WORK/$name/render.png"

@@ -1,4 +1,4 @@
-//! Similitudes `x ↦ s·R·x + t` in any dimension H (R a proper rotation), the map family of
+//! Similitudes `x ↦ s·R·x + t` in any dimension H (R orthogonal: a rotation, reflected or not), the map family of
 //! the EM strategy, and uniform random rotations to initialise them.
 
 use nalgebra::{DMatrix, DVector};
@@ -13,7 +13,8 @@ use crate::model::affine::AffineN;
 pub struct Similitude {
     /// Scale factor (the map is contractive when `s < 1`).
     pub s: f64,
-    /// H×H rotation (orthogonal, determinant +1).
+    /// H×H orthogonal matrix: a rotation (determinant +1), or a rotation and a reflection
+    /// (−1) where a fit allows reflections.
     pub r: DMatrix<f64>,
     /// Translation of length H.
     pub t: DVector<f64>,
@@ -82,17 +83,17 @@ impl Similitude {
         }
     }
 
-    /// Recovers a similitude from an affine map whose linear part is `s·R` with `R ∈ SO(H)`;
+    /// Recovers a similitude from an affine map whose linear part is `s·R` with `R ∈ O(H)`
     /// `tol` bounds the allowed deviation of `Mᵀ·M / s²` from the identity.
     pub fn from_affine(a: &AffineN, tol: f64) -> Result<Self> {
         let h = a.dim();
         let det = a.m.determinant();
-        if det <= 0.0 {
+        if !(det.is_finite() && det != 0.0) {
             return Err(Error::Shape(format!(
-                "linear part has determinant {det}; a similitude with a proper rotation needs det > 0"
+                "linear part has determinant {det}; a similitude needs a non-zero one"
             )));
         }
-        let s = det.powf(1.0 / h as f64);
+        let s = det.abs().powf(1.0 / h as f64);
         let r = &a.m / s;
         let dev = (r.transpose() * &r - DMatrix::<f64>::identity(h, h)).amax();
         if dev > tol {

@@ -108,7 +108,7 @@ fn main() {
         let clock = Instant::now();
         for seed in 0..seeds {
             let dir = tempfile::tempdir().unwrap();
-            let mut cfg = SdfConfig::new(dir.path().join("unused.png"), "koch");
+            let mut cfg = SdfConfig::paper(dir.path().join("unused.png"), "koch");
             cfg.size = SIZE;
             cfg.depth = DEPTH;
             cfg.sigma = SIGMA;
@@ -130,7 +130,7 @@ fn main() {
             });
             cfg.loss.scale_barrier = barrier;
             let t = Instant::now();
-            match run_sdf(&cfg, target.clone(), dir.path(), false, vec![]) {
+            match run_sdf(&cfg, target.clone(), None, dir.path(), false, vec![]) {
                 Err(e) => {
                     failed += 1;
                     let msg = e.to_string().replace(',', ";");
@@ -139,7 +139,7 @@ fn main() {
                 Ok(out) => {
                     let secs = t.elapsed().as_secs_f64();
                     let problem =
-                        ifslab_strategies::problems::sdf::sdf_problem(&cfg, target.clone())
+                        ifslab_strategies::problems::sdf::sdf_problem(&cfg, target.clone(), None)
                             .unwrap();
                     let (fit, ok_assign) = match problem.pattern_at(&out.theta) {
                         Ok(fit) => {

@@ -123,7 +123,7 @@ fn main() {
             let t_all = Instant::now();
             for seed in 0..args.seeds {
                 let dir = tempfile::tempdir().unwrap();
-                let mut cfg = SdfConfig::new(dir.path().join("unused.png"), "koch");
+                let mut cfg = SdfConfig::paper(dir.path().join("unused.png"), "koch");
                 cfg.size = args.size;
                 cfg.depth = args.depth;
                 cfg.sigma = sigma;
@@ -145,7 +145,7 @@ fn main() {
                     ..AdamConfig::default()
                 });
                 let t = Instant::now();
-                let out = run_sdf(&cfg, target.clone(), dir.path(), false, vec![]).unwrap();
+                let out = run_sdf(&cfg, target.clone(), None, dir.path(), false, vec![]).unwrap();
                 let secs = t.elapsed().as_secs_f64();
                 let fit = truth.with_flat_points(&out.theta).unwrap();
                 let img = render(&fit, args.size, args.depth, sigma);

@@ -106,7 +106,7 @@ fn main() {
     let t_all = Instant::now();
     for seed in 0..args.seeds {
         let dir = tempfile::tempdir().unwrap();
-        let mut cfg = SdfConfig::new(dir.path().join("unused.png"), "koch");
+        let mut cfg = SdfConfig::paper(dir.path().join("unused.png"), "koch");
         cfg.size = args.size;
         cfg.depth = args.depth;
         cfg.sigma = args.sigma;
@@ -127,7 +127,7 @@ fn main() {
             ..AdamConfig::default()
         });
         let t = Instant::now();
-        let out = match run_sdf(&cfg, target.clone(), dir.path(), false, vec![]) {
+        let out = match run_sdf(&cfg, target.clone(), None, dir.path(), false, vec![]) {
             Ok(o) => o,
             Err(e) => {
                 println!("{seed},,,,,{:.2} # {e}", t.elapsed().as_secs_f64());

@@ -10,13 +10,16 @@
 //! - [`problems`]: [`problems::image`] (image → IFS code with the differentiable splatter and
 //!   any registered optimiser), [`problems::em`] (EM for similitude IFSs fitted to point
 //!   clouds of any dimension), [`problems::fractal_coding`] (fractal-coding texture
-//!   upsampling).
+//!   upsampling);
+//! - [`recipe`]: ifslab's defaults and the papers' recipes (`paper = true`), as presets merged
+//!   into configs where they leave keys out.
 #![warn(missing_docs)]
 
 pub mod driver;
 pub mod error;
 pub mod optim;
 pub mod problems;
+pub mod recipe;
 pub mod registry;
 
 pub use error::{Error, Result};

@@ -234,30 +234,39 @@ fn procrustes_rotations_are_proper_in_2_3_and_5_dimensions() {
 
 #[test]
 fn m_step_keeps_every_rotation_proper_in_2_3_and_5_dimensions() {
-    // Data from a random IFS of similitudes in R^H; every rotation the M-step produces —
-    // components and post-transform — must be orthogonal with determinant +1.
+    // Data from a random IFS of similitudes in R^H; with the paper's M-step every rotation it
+    // produces — components and post-transform — must be orthogonal with determinant +1. With
+    // reflections allowed (the default) a component may mirror (determinant ±1) but the
+    // post-transform, a change of frame, stays proper.
     for h in [2usize, 3, 5] {
         let mut rng = trajectory_rng(40 + h as u64, 0);
         let gen_post = Similitude::identity(h);
         let generator = init::random_model(2, 8, 0.45, gen_post, &mut rng).unwrap();
         let data = generator.sample(600, 1).unwrap();
         let start = init::random_model(2, 3, 0.5, init::normalising_post(&data), &mut rng).unwrap();
-        for update in [ComponentUpdate::Outermost, ComponentUpdate::AllPositions] {
-            let cfg = MStepConfig {
-                update,
-                ..MStepConfig::default()
-            };
-            let mut m = start.clone();
-            for _ in 0..10 {
-                m = em_step(&m, &data, &cfg, &mut rng).unwrap().0;
-                for r in m.components.iter().map(|c| &c.r).chain([&m.post.r]) {
-                    let orth = (r.transpose() * r - DMatrix::<f64>::identity(h, h)).amax();
-                    assert!(orth < 1e-9, "H = {h}: RᵀR ≠ I ({orth})");
-                    assert!(
-                        (r.determinant() - 1.0).abs() < 1e-9,
-                        "H = {h}: det {}",
-                        r.determinant()
-                    );
+        for reflections in [false, true] {
+            for update in [ComponentUpdate::Outermost, ComponentUpdate::AllPositions] {
+                let cfg = MStepConfig {
+                    update,
+                    reflections,
+                    ..MStepConfig::default()
+                };
+                let mut m = start.clone();
+                for _ in 0..10 {
+                    m = em_step(&m, &data, &cfg, &mut rng).unwrap().0;
+                    let post = std::iter::once((&m.post.r, true));
+                    let parts = m.components.iter().map(|c| (&c.r, !reflections));
+                    for (r, proper) in parts.chain(post) {
+                        let orth = (r.transpose() * r - DMatrix::<f64>::identity(h, h)).amax();
+                        assert!(orth < 1e-9, "H = {h}: RᵀR ≠ I ({orth})");
+                        let det = r.determinant();
+                        let ok = if proper {
+                            (det - 1.0).abs() < 1e-9
+                        } else {
+                            (det.abs() - 1.0).abs() < 1e-9
+                        };
+                        assert!(ok, "H = {h}, reflections {reflections}: det {det}");
+                    }
                 }
             }
         }

@@ -67,7 +67,7 @@ fn sierpinski_target(dir: &Path, size: usize) -> PathBuf {
 }
 
 fn config(target: &Path, iterations: u64) -> FlameLearnConfig {
-    let mut cfg = FlameLearnConfig::new(target, 6, vec!["linear".into()]);
+    let mut cfg = FlameLearnConfig::paper(target, 6, vec!["linear".into()]);
     cfg.sampler = sampler(32);
     cfg.iterations = iterations;
     cfg.seed = 3;
@@ -182,7 +182,7 @@ fn bad_input_is_answered_clearly() {
     );
     // `auto` fixes the background to the target's border colour (here the blue it was laid
     // over).
-    let mut auto = FlameLearnConfig::new(&rgba, 4, vec!["linear".into()]);
+    let mut auto = FlameLearnConfig::paper(&rgba, 4, vec!["linear".into()]);
     auto.sampler.size = 10;
     auto.background = BackgroundConfig::Named("auto".into());
     assert_eq!(
@@ -200,7 +200,7 @@ fn bad_input_is_answered_clearly() {
         "{e}"
     );
     // Unknown and random variations are named.
-    let mut cfg = FlameLearnConfig::new(&grey, 4, vec!["sphericall".into()]);
+    let mut cfg = FlameLearnConfig::paper(&grey, 4, vec!["sphericall".into()]);
     let e = cfg.validate().unwrap_err().to_string();
     assert!(e.contains("unknown variation `sphericall`"), "{e}");
     cfg.flames = vec![LayerSpec {
@@ -229,7 +229,7 @@ fn bad_input_is_answered_clearly() {
     .unwrap_err()
     .to_string();
     assert!(bad.contains("flames"), "{bad}");
-    let mut cfg = FlameLearnConfig::new(&grey, 4, vec!["linear".into()]);
+    let mut cfg = FlameLearnConfig::paper(&grey, 4, vec!["linear".into()]);
     cfg.background = BackgroundConfig::Named("purple".into());
     assert!(cfg.validate().unwrap_err().to_string().contains("purple"));
 }

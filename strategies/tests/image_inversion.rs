@@ -46,6 +46,7 @@ fn iou_of(maps: &[ifslab::model::Affine2], t: &[f32], size: usize) -> f64 {
 
 fn base_config(size: usize, iterations: u64, strategy: StrategyConfig) -> InversionConfig {
     InversionConfig {
+        paper: true,
         seed: 1,
         iterations,
         checkpoint_every: 0,
@@ -55,6 +56,7 @@ fn base_config(size: usize, iterations: u64, strategy: StrategyConfig) -> Invers
             code: Some("sierpinski".into()),
             suite: None,
             index: None,
+            truth: None,
             size,
             polarity: Default::default(),
         },

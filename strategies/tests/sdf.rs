@@ -110,7 +110,7 @@ fn the_whole_loss_gradient_matches_finite_differences() {
 }
 
 fn koch_config(dir: &std::path::Path, iterations: u64, final_lr_factor: f64) -> SdfConfig {
-    let mut c = SdfConfig::new(dir.join("unused.png"), "koch");
+    let mut c = SdfConfig::paper(dir.join("unused.png"), "koch");
     c.size = 64;
     c.depth = 4;
     c.sigma = 1.5;
@@ -152,7 +152,7 @@ fn koch_is_recovered_from_the_best_fit_line() {
         koch_error(&start, &truth) > 0.05,
         "the start is not already the answer"
     );
-    let out = run_sdf(&cfg, target, dir.path(), false, vec![]).unwrap();
+    let out = run_sdf(&cfg, target, None, dir.path(), false, vec![]).unwrap();
     let err = koch_error(&out.theta, &truth);
     assert!(
         err < 1e-2,
@@ -172,6 +172,7 @@ fn a_resumed_fit_is_bit_identical() {
     let whole = run_sdf(
         &koch_config(a.path(), 20, 1.0),
         target.clone(),
+        None,
         a.path(),
         false,
         vec![],
@@ -181,6 +182,7 @@ fn a_resumed_fit_is_bit_identical() {
     run_sdf(
         &koch_config(b.path(), 10, 1.0),
         target.clone(),
+        None,
         b.path(),
         false,
         vec![],
@@ -189,6 +191,7 @@ fn a_resumed_fit_is_bit_identical() {
     let resumed = run_sdf(
         &koch_config(b.path(), 20, 1.0),
         target.clone(),
+        None,
         b.path(),
         true,
         vec![],
@@ -209,6 +212,7 @@ fn a_resumed_fit_is_bit_identical() {
     let e = run_sdf(
         &koch_config(b.path(), 20, 1.0),
         target,
+        None,
         b.path(),
         false,
         vec![],
@@ -229,7 +233,7 @@ fn coarse_to_fine_recovers_koch_at_256() {
     cfg.depth = 5;
     cfg.sigma_start = Some(6.0);
     let target = koch_target(cfg.size, cfg.depth, cfg.sigma);
-    let out = run_sdf(&cfg, target, dir.path(), false, vec![]).unwrap();
+    let out = run_sdf(&cfg, target, None, dir.path(), false, vec![]).unwrap();
     let err = koch_error(&out.theta, &koch_truth().flat_points());
     assert!(err < 1e-2, "control points off by {err}: {:?}", out.theta);
 }

@@ -189,7 +189,7 @@ fn bad_learned_settings_are_refused_with_the_field_named() {
     ] {
         let e = cfg.validate().unwrap_err().to_string();
         assert!(e.contains(field), "{e}");
-        let mut c = SdfConfig::new("t.png", "koch");
+        let mut c = SdfConfig::paper("t.png", "koch");
         c.learned = Some(cfg);
         let e = c.validate().unwrap_err().to_string();
         assert!(e.contains(field), "{e}");

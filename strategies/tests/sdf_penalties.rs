@@ -246,7 +246,7 @@ fn square_fit_max_scale(barrier: f64) -> f64 {
         })
         .collect();
     let dir = tempfile::tempdir().unwrap();
-    let mut cfg = SdfConfig::new(dir.path().join("unused.png"), "koch");
+    let mut cfg = SdfConfig::paper(dir.path().join("unused.png"), "koch");
     cfg.size = size;
     cfg.depth = 5;
     cfg.sigma = 1.5;
@@ -261,7 +261,7 @@ fn square_fit_max_scale(barrier: f64) -> f64 {
         final_lr_factor: 0.05,
         ..AdamConfig::default()
     });
-    let out = run_sdf(&cfg, target, dir.path(), false, vec![]).unwrap();
+    let out = run_sdf(&cfg, target, None, dir.path(), false, vec![]).unwrap();
     builtin("koch")
         .unwrap()
         .with_flat_points(&out.theta)

@@ -1,15 +1,12 @@
 //! `ifslab demo`: the README's main command. With no files and no downloads it renders a
-//! known code as the target, recovers an IFS code from that image (EM initialisation, then
-//! the hybrid Adam + annealing strategy on the differentiable splatter) and writes every
-//! output of `ifslab invert` plus a one-line summary.
+//! known code as the target and recovers an IFS code from that image at the defaults of
+//! `ifslab invert` (EM initialisation, then the hybrid Adam + annealing strategy on the
+//! differentiable splatter), writing every output of `ifslab invert` plus a one-line
+//! summary.
 
 use std::path::PathBuf;
 
-use ifslab_strategies::optim::hybrid::{ColdHybridConfig, HybridConfig};
-use ifslab_strategies::problems::image::config::{
-    GeneratorConfig, ModelConfig, RendererConfig, TargetConfig,
-};
-use ifslab_strategies::problems::image::{InitKind, InversionConfig, StrategyConfig};
+use ifslab_strategies::problems::image::InversionConfig;
 
 use ifslab_experiments::runs::inversion::run_and_report;
 
@@ -24,14 +21,11 @@ pub struct Args {
     /// Seed of the run.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Optimisation iterations.
-    #[arg(long, default_value_t = 600)]
-    pub iters: u64,
 }
 
-/// The demo's configuration: a 96² target, maps as in the target code, 1000 × 110
-/// trajectories per iteration, EM initialisation, a coarse-to-fine splat, the hybrid with a
-/// cold annealing phase every 100 iterations during the first half.
+/// The demo's configuration: `ifslab invert TARGET --maps N` at every default (ifslab's
+/// recipe: the EM start, the cold hybrid, σ 1 → 0.4, 1000 iterations of 1000 × 110 points
+/// at 128²), N the maps of the built-in code.
 pub fn demo_config(a: &Args) -> anyhow::Result<InversionConfig> {
     let code = ifslab::model::library::builtin(&a.target)?;
     if code.dim() != 2 {
@@ -41,44 +35,14 @@ pub fn demo_config(a: &Args) -> anyhow::Result<InversionConfig> {
             code.dim()
         );
     }
-    let cfg = InversionConfig {
-        seed: a.seed,
-        iterations: a.iters,
-        checkpoint_every: 100,
-        output: Some(a.output.clone()),
-        target: TargetConfig {
-            image: None,
-            code: Some(a.target.clone()),
-            suite: None,
-            index: None,
-            size: 96,
-            polarity: Default::default(),
-        },
-        model: ModelConfig {
-            maps: code.maps.len(),
-            init: InitKind::Em,
-            ..ModelConfig::default()
-        },
-        generator: GeneratorConfig {
-            trajectories: 1000,
-            length: 110,
-            ..GeneratorConfig::default()
-        },
-        // Coarse-to-fine splat (σ 1 → 0.4 supersampled pixels): a fixed σ = 1 draws thin
-        // structures thick and the loss prefers slightly shrunken maps (IoU ≈ 0.74 on
-        // Sierpiński); ending thin removes that bias (paper_repro/chaotic_splatting/README.md).
-        renderer: RendererConfig {
-            sigma_final: Some(0.4),
-            ..RendererConfig::default()
-        },
-        loss: Default::default(),
-        // Cold annealing: the EM fit is already in the right basin.
-        strategy: StrategyConfig::new(&ColdHybridConfig(HybridConfig {
-            anneal_every: 100,
-            ..HybridConfig::from_good_start()
-        })),
-    };
-    cfg.validate()?;
+    let text = format!(
+        "seed = {seed}\n[target]\ncode = {target:?}\n[model]\nmaps = {maps}\n",
+        seed = a.seed,
+        target = a.target,
+        maps = code.maps.len(),
+    );
+    let mut cfg = InversionConfig::from_toml(&text, std::path::Path::new("the demo"))?;
+    cfg.output = Some(a.output.clone());
     Ok(cfg)
 }
 

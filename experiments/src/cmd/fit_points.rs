@@ -91,7 +91,7 @@ pub struct Args {
     #[arg(long, value_enum, default_value = "log-likelihood")]
     pub preselect_by: SelectBy,
     /// Orientations tried per component by the re-orientation search (0 = off).
-    #[arg(long, default_value_t = 12)]
+    #[arg(long, default_value_t = 36)]
     pub reorient: usize,
     /// Re-orientation search every this many main iterations (0 = only in pre-selection).
     #[arg(long, default_value_t = 100)]
@@ -105,9 +105,15 @@ pub struct Args {
     /// Component update rule of the M-step.
     #[arg(long, value_enum, default_value = "all-positions")]
     pub update: Update,
+    /// Maps rotate only (the paper's similitudes); by default they may also reflect.
+    #[arg(long)]
+    pub no_reflections: bool,
+    /// Leave isolated points (stray outliers) out before fitting.
+    #[arg(long)]
+    pub trim_outliers: bool,
     /// The paper's algorithm: outermost update, fixed-depth pre-selection by mean depth,
     /// no re-orientation, no recentring.
-    #[arg(long, conflicts_with_all = ["preselect_schedule", "preselect_by", "reorient", "reorient_every", "no_recentre", "update"])]
+    #[arg(long, conflicts_with_all = ["preselect_schedule", "preselect_by", "reorient", "reorient_every", "no_recentre", "update", "no_reflections", "trim_outliers"])]
     pub paper: bool,
     /// Independent runs; the one with the best held-out log-likelihood is kept.
     #[arg(long, default_value_t = 1)]
@@ -127,9 +133,9 @@ pub struct Args {
     /// Also write the (sampled or loaded) points here (.csv or .npy).
     #[arg(long)]
     pub save_data: Option<PathBuf>,
-    /// The code that made the data (2-D): report each fit's coverage agreement with it (the
-    /// share of covered pixels within one pixel of the other's, at 128²) and the largest
-    /// difference of the sorted scales.
+    /// The code that made the data (2-D or 3-D): report each fit's coverage agreement with
+    /// it (the share of covered pixels within one pixel of the other's, at 128², or voxels
+    /// at 64³), their plain IoU, and the largest difference of the sorted scales.
     #[arg(long)]
     pub truth: Option<String>,
     /// Gaussian-mixture baselines: component counts (default: K, and the largest counts
@@ -176,6 +182,8 @@ impl Args {
                 Update::AllPositions => ComponentUpdate::AllPositions,
                 Update::Outermost => ComponentUpdate::Outermost,
             }),
+            reflections: (!self.paper).then_some(!self.no_reflections),
+            trim_outliers: self.trim_outliers.then_some(true),
             paper: self.paper,
             eval_points: self.eval_points,
             runs: self.runs,
@@ -196,7 +204,7 @@ impl Args {
 pub fn run(a: Args) -> anyhow::Result<()> {
     let (cfg, dir, resume) = match &a.resume {
         Some(dir) => (
-            RunConfig::load(&dir.join(CONFIG_FILE))
+            RunConfig::load_resolved(&dir.join(CONFIG_FILE))
                 .with_context(|| format!("{} holds no points run to resume", dir.display()))?,
             dir.clone(),
             true,

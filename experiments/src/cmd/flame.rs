@@ -36,17 +36,26 @@ pub enum Command {
     Learn(LearnArgs),
 }
 
+/// `ifslab flame learn`'s flags: a shorthand for a `problem = "flame"` config. Flags left
+/// out are left out of the config too, so the recipe (ifslab's, or the authors' with
+/// `--paper`) decides them exactly as it does for `ifslab run`.
 #[derive(clap::Args, Debug)]
 pub struct LearnArgs {
     /// The target image (RGB; grey images are used as equal channels, transparency is
     /// composited over the background).
-    pub target: PathBuf,
+    #[arg(required_unless_present_any = ["config", "resume"])]
+    pub target: Option<PathBuf>,
+    /// Bannister & Nowrouzezahrai's recipe instead of ifslab's: plain gradient descent with
+    /// their per-module rates, on white (ifslab's, the default: Adam with per-group rates,
+    /// half their MSE at their budget, on the target's border colour).
+    #[arg(long)]
+    pub paper: bool,
     /// Flame layers, composited bottom first.
     #[arg(long, default_value_t = 1)]
     pub flames: usize,
-    /// Generators per layer.
-    #[arg(long, default_value_t = 8)]
-    pub xforms: usize,
+    /// Generators per layer. [default: 16; --paper: 8]
+    #[arg(long)]
+    pub xforms: Option<usize>,
     /// Variations (flam3 names, comma-separated). As many as --flames: one per layer (the
     /// authors' Fighting Forms); otherwise every layer's non-linear generators get all.
     #[arg(long, value_delimiter = ',', default_value = "linear")]
@@ -54,39 +63,42 @@ pub struct LearnArgs {
     /// Leading generators of each layer that stay linear.
     #[arg(long, default_value_t = 0)]
     pub linear: usize,
-    /// Training image side in pixels.
-    #[arg(long, default_value_t = 100)]
-    pub size: usize,
+    /// Training image side in pixels. [default: 100]
+    #[arg(long)]
+    pub size: Option<usize>,
     /// Trajectories per layer (each of 1000 steps: the default draws 10⁶ samples).
-    #[arg(long, default_value_t = 1000)]
-    pub trajectories: usize,
-    /// Side of the final render beside the training-size one (0: none).
-    #[arg(long, default_value_t = 400)]
-    pub eval_size: usize,
-    /// Iterations.
-    #[arg(long, default_value_t = 150)]
-    pub iters: u64,
-    /// `gd`: the paper's plain gradient descent with the authors' per-module rates; `adam`:
-    /// Adam with per-group rates (half the MSE at Fig. 4's budget, paper_repro/fractal_flames).
-    #[arg(long, default_value = "gd", value_parser = ["gd", "adam"])]
-    pub optimiser: String,
-    /// Base learning rate (group rates multiply it; default 0.1 for gd, 0.05 for adam).
+    /// [default: 1000]
+    #[arg(long)]
+    pub trajectories: Option<usize>,
+    /// Side of the final render beside the training-size one (0: none). [default: 400]
+    #[arg(long)]
+    pub eval_size: Option<usize>,
+    /// Iterations. [default: 150]
+    #[arg(long)]
+    pub iters: Option<u64>,
+    /// `adam`: Adam with per-group rates (half the paper's MSE at Fig. 4's budget,
+    /// paper_repro/fractal_flames); `gd`: the paper's plain gradient descent with the
+    /// authors' per-module rates. [default: adam; --paper: gd]
+    #[arg(long, value_parser = ["gd", "adam"])]
+    pub optimiser: Option<String>,
+    /// Base learning rate (group rates multiply it). [default: 0.05 for adam, 0.1 for gd]
     #[arg(long)]
     pub lr: Option<f64>,
     /// Background: auto (fixed to the mean colour of the target's border), white, black,
-    /// learned.
-    #[arg(long, default_value = "auto")]
-    pub background: String,
-    /// Seed of the start and the generator order.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
-    /// A TOML config (`problem = "flame"`) instead of the flags above.
+    /// learned. [default: auto; --paper: white]
     #[arg(long)]
+    pub background: Option<String>,
+    /// Seed of the start and the generator order. [default: 0]
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// A TOML config (`problem = "flame"`) instead of the flags above.
+    #[arg(long, conflicts_with = "target")]
     pub config: Option<PathBuf>,
     /// Run folder.
     #[arg(short, long, default_value = "out/flame")]
     pub output: PathBuf,
-    /// Continue the run in the output folder from its last checkpoint.
+    /// Continue the run in the output folder from its last checkpoint (its config.toml says
+    /// what it is; no other flag is read).
     #[arg(long)]
     pub resume: bool,
 }
@@ -198,72 +210,105 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
 fn learn(a: LearnArgs) -> anyhow::Result<()> {
     use ifslab_experiments::runs::RunConfig;
-    use ifslab_strategies::optim::adam::AdamConfig;
-    use ifslab_strategies::optim::gd::GdConfig;
-    use ifslab_strategies::problems::flame::{
-        BackgroundConfig, FlameLearnConfig, LayerSpec, Rates,
-    };
-    use ifslab_strategies::problems::image::StrategyConfig;
-    let cfg = match &a.config {
-        Some(path) => match RunConfig::load(path)? {
-            RunConfig::Flame(c) => *c,
-            other => bail!(
-                "{}: a `problem = \"{}\"` config; flame learn takes `problem = \"flame\"`",
-                path.display(),
-                other.problem()
-            ),
-        },
-        None => {
-            if a.flames == 0 {
-                bail!("--flames must be at least 1");
+    let run = if a.resume {
+        let path = a
+            .output
+            .join(ifslab_experiments::runs::inversion::CONFIG_FILE);
+        // The run's own config, with the settings given now on top (`--iters 300`).
+        let mut overrides = toml::Table::new();
+        if let Some(n) = a.iters {
+            overrides.insert("iterations".into(), (n as i64).into());
+        }
+        RunConfig::load_resolved_with(&path, overrides)
+            .with_context(|| format!("reading the run in {}", a.output.display()))?
+    } else {
+        match &a.config {
+            Some(path) => {
+                let mut table: toml::Table = std::fs::read_to_string(path)
+                    .with_context(|| format!("reading {}", path.display()))?
+                    .parse()
+                    .with_context(|| format!("{} is not valid TOML", path.display()))?;
+                table.insert("output".into(), a.output.to_string_lossy().as_ref().into());
+                RunConfig::from_table(table, path)?
             }
-            let per_layer = a.variations.len() == a.flames && a.flames > 1;
-            let mut cfg = FlameLearnConfig::new(&a.target, a.xforms, a.variations.clone());
-            cfg.flames = (0..a.flames)
-                .map(|i| LayerSpec {
-                    xforms: a.xforms,
-                    variations: if per_layer {
-                        vec![a.variations[i].clone()]
-                    } else {
-                        a.variations.clone()
-                    },
-                    linear: a.linear,
-                })
-                .collect();
-            cfg.sampler.size = a.size;
-            cfg.sampler.trajectories = a.trajectories;
-            cfg.eval_size = a.eval_size;
-            cfg.iterations = a.iters;
-            cfg.seed = a.seed;
-            cfg.background = BackgroundConfig::Named(a.background.clone());
-            if a.optimiser == "adam" {
-                cfg.strategy = StrategyConfig::new(&AdamConfig {
-                    lr: a.lr.unwrap_or(0.05),
-                    ..AdamConfig::default()
-                });
-                cfg.rates = Rates {
-                    final_transform: 1.0,
-                    kappa: 1.0,
-                    color: 5.0,
-                    background: 5.0,
-                    ..Rates::default()
-                };
-            } else {
-                cfg.strategy = StrategyConfig::new(&GdConfig {
-                    lr: a.lr.unwrap_or(0.1),
-                    ..GdConfig::default()
-                });
-            }
-            cfg.validate()?;
-            cfg
+            None => RunConfig::from_table(learn_table(&a)?, Path::new("./the command line"))?,
         }
     };
-    let mut cfg = cfg;
-    cfg.output = Some(a.output.clone());
-    let run = RunConfig::Flame(Box::new(cfg));
+    if run.problem() != "flame" {
+        bail!(
+            "a `problem = \"{}\"` config; flame learn takes `problem = \"flame\"`",
+            run.problem()
+        );
+    }
     let r = run.run(&a.output, a.resume, Box::new(Bar::for_problem("flame")))?;
     println!("{}: {}", a.output.display(), r.headline);
     Ok(())
+}
+
+/// The flags as a `problem = "flame"` config table.
+fn learn_table(a: &LearnArgs) -> anyhow::Result<toml::Table> {
+    if a.flames == 0 {
+        bail!("--flames must be at least 1");
+    }
+    let target = a
+        .target
+        .clone()
+        .expect("clap: a target unless --config or --resume");
+    let per_layer = a.variations.len() == a.flames && a.flames > 1;
+    let layers: Vec<toml::Value> = (0..a.flames)
+        .map(|i| {
+            let variations: Vec<toml::Value> = if per_layer {
+                vec![a.variations[i].clone().into()]
+            } else {
+                a.variations.iter().map(|v| v.clone().into()).collect()
+            };
+            let mut l = toml::Table::new();
+            let xforms = a
+                .xforms
+                .unwrap_or_else(|| ifslab_strategies::problems::flame::default_xforms(a.paper));
+            l.insert("xforms".into(), (xforms as i64).into());
+            l.insert("variations".into(), variations.into());
+            l.insert("linear".into(), (a.linear as i64).into());
+            l.into()
+        })
+        .collect();
+    let mut t = toml::Table::new();
+    let mut set = |key: &str, v: Option<toml::Value>| {
+        if let Some(v) = v {
+            ifslab_experiments::sweep::expand::set_dotted(&mut t, key, v)
+                .expect("flag keys are distinct config keys");
+        }
+    };
+    let int = |v: Option<u64>| v.map(|v| toml::Value::Integer(v as i64));
+    let size = |v: Option<usize>| v.map(|v| toml::Value::Integer(v as i64));
+    set("problem", Some("flame".into()));
+    set("paper", Some(a.paper.into()));
+    set("target", Some(target.to_string_lossy().into_owned().into()));
+    set("flames", Some(layers.into()));
+    set("sampler.size", size(a.size));
+    set("sampler.trajectories", size(a.trajectories));
+    set("eval_size", size(a.eval_size));
+    set("iterations", int(a.iters));
+    set("seed", int(a.seed));
+    set("background", a.background.clone().map(Into::into));
+    let kind = a.optimiser.clone().or_else(|| {
+        a.lr.is_some()
+            .then(|| if a.paper { "gd" } else { "adam" }.into())
+    });
+    if let Some(kind) = kind {
+        let lr = a.lr.unwrap_or(if kind == "adam" {
+            ifslab_strategies::problems::flame::DEFAULT_ADAM_LR
+        } else {
+            0.1
+        });
+        set("strategy.kind", Some(kind.into()));
+        set("strategy.lr", Some(lr.into()));
+    }
+    set(
+        "output",
+        Some(a.output.to_string_lossy().into_owned().into()),
+    );
+    Ok(t)
 }
 
 /// `flame` with its size and quality overridden as the command line asks.

@@ -1,5 +1,7 @@
 //! `ifslab invert TARGET -o DIR`: recover an IFS code from an image (or from a code's render).
-//! The flags are a shorthand for a config file; the resolved config is written to DIR.
+//! The flags are a shorthand for a config file: they become the config's keys, the recipe
+//! (ifslab's, or the paper's with `--paper`) fills in the rest exactly as it does for
+//! `ifslab run`, and the resolved config is written to DIR.
 
 use std::path::{Path, PathBuf};
 
@@ -9,11 +11,9 @@ use ifslab_strategies::driver::Params;
 use ifslab_strategies::optim::adam::AdamConfig;
 use ifslab_strategies::optim::hybrid::{ColdHybridConfig, HybridConfig};
 use ifslab_strategies::optim::noisy::NoisyConfig;
-use ifslab_strategies::problems::image::config::{
-    GeneratorConfig, ModelConfig, RendererConfig, TargetConfig,
-};
 use ifslab_strategies::problems::image::{InitKind, InversionConfig, Polarity, StrategyConfig};
 
+use ifslab_experiments::runs::RunConfig;
 use ifslab_experiments::runs::inversion::{CONFIG_FILE, run_and_report};
 
 #[derive(clap::Args, Debug)]
@@ -30,9 +30,15 @@ pub struct Args {
     /// Number of maps.
     #[arg(long, default_value_t = 3)]
     pub maps: usize,
-    /// Optimisation iterations.
-    #[arg(long, default_value_t = 2000)]
-    pub iters: u64,
+    /// Optimisation iterations. [default: 1000; --paper: 2000]
+    #[arg(long)]
+    pub iters: Option<u64>,
+    /// The chaotic-splatting paper's recipe instead of ifslab's: a random (Anderson–Farrell)
+    /// start, the hybrid with its hot annealing, σ fixed, 2000 iterations of 2000 × 250
+    /// points. ifslab's (the default): the EM start (maps that may mirror), the cold hybrid,
+    /// σ 1 → 0.4, 1000 iterations of 1000 × 110 points (robustness/README.md).
+    #[arg(long)]
+    pub paper: bool,
     /// Any registered strategy (hybrid, cold_hybrid, adam, annealing, noisy, gd, and the
     /// value-only baselines evolutionary, cmaes, cuckoo and swarm: one generation per
     /// iteration; learning-fractals: Tu et al.'s whole recipe — their rotation–scale–rotation
@@ -40,9 +46,9 @@ pub struct Args {
     /// Adam at 0.05 with clipping, halvings and weight noise; it replaces --param,
     /// --supersample, --sigma, --trajectories and --length). `hybrid`
     /// from an EM start means `cold_hybrid` (τ₀ 0.02, noise 0.05), from a random one the
-    /// paper's (τ₀ 1, noise 0.2).
-    #[arg(long, default_value = "hybrid")]
-    pub strategy: String,
+    /// paper's (τ₀ 1, noise 0.2). [default: the recipe's: hybrid]
+    #[arg(long)]
+    pub strategy: Option<String>,
     /// Side of the (square) target and render in pixels.
     #[arg(long, default_value_t = 128)]
     pub size: usize,
@@ -58,18 +64,19 @@ pub struct Args {
     /// Gaussian σ in supersampled pixels.
     #[arg(long, default_value_t = 1.0)]
     pub sigma: f64,
-    /// σ at the last iteration: σ shrinks geometrically from --sigma to it (coarse-to-fine).
+    /// σ at the last iteration: σ shrinks geometrically from --sigma to it (coarse-to-fine;
+    /// --sigma-final equal to --sigma keeps it fixed). [default: 0.4; --paper: fixed]
     #[arg(long)]
     pub sigma_final: Option<f64>,
     /// Where the splat runs: cpu, or cuda (an NVIDIA GPU; needs a build with --features cuda).
     #[arg(long, default_value = "cpu")]
     pub device: ifslab::render::splat::SplatDevice,
-    /// Chaos-game trajectories per iteration.
-    #[arg(long, default_value_t = 2000)]
-    pub trajectories: usize,
-    /// Steps per trajectory (10 dropped as warm-up).
-    #[arg(long, default_value_t = 250)]
-    pub length: usize,
+    /// Chaos-game trajectories per iteration. [default: 1000; --paper: 2000]
+    #[arg(long)]
+    pub trajectories: Option<usize>,
+    /// Steps per trajectory (10 dropped as warm-up). [default: 110; --paper: 250]
+    #[arg(long)]
+    pub length: Option<usize>,
     /// Learning rate of Adam-based strategies.
     #[arg(long)]
     pub lr: Option<f64>,
@@ -84,9 +91,9 @@ pub struct Args {
     pub seed: u64,
     /// Initial code: em (similitudes fitted by EM to points drawn from the target, the
     /// reliable start) or random (an Anderson–Farrell code: the paper's recipe, which at CPU
-    /// budgets rarely recovers a fractal).
-    #[arg(long, default_value = "em")]
-    pub init: String,
+    /// budgets rarely recovers a fractal). [default: em; --paper: random]
+    #[arg(long)]
+    pub init: Option<String>,
     /// Which way round the target's shape is drawn: auto (decide from the border),
     /// bright-on-dark or dark-on-light.
     #[arg(long, default_value = "auto", conflicts_with = "dark_on_light")]
@@ -98,8 +105,16 @@ pub struct Args {
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     if let Some(dir) = a.resume {
-        let cfg = InversionConfig::load(&dir.join(CONFIG_FILE))
-            .with_context(|| format!("reading the run in {}", dir.display()))?;
+        let cfg = match RunConfig::load_resolved(&dir.join(CONFIG_FILE))
+            .with_context(|| format!("reading the run in {}", dir.display()))?
+        {
+            RunConfig::Image(c) => *c,
+            other => anyhow::bail!(
+                "{} holds a `{}` run; `ifslab invert --resume` continues image inversions",
+                dir.display(),
+                other.problem()
+            ),
+        };
         return report(&cfg, &dir, true);
     }
     let cfg = config_from_flags(&a)?;
@@ -123,29 +138,84 @@ fn report(cfg: &InversionConfig, dir: &Path, resume: bool) -> anyhow::Result<()>
 fn config_from_flags(a: &Args) -> anyhow::Result<InversionConfig> {
     let spec = a.target.clone().expect("clap: target or --resume");
     let is_image = Path::new(&spec).is_file() && !spec.to_ascii_lowercase().ends_with(".json");
-    let target = TargetConfig {
-        image: is_image.then(|| PathBuf::from(&spec)),
-        code: (!is_image).then(|| spec.clone()),
-        suite: None,
-        index: None,
-        size: a.size,
-        polarity: if a.dark_on_light {
-            Polarity::DarkOnLight
+    let polarity = if a.dark_on_light {
+        Polarity::DarkOnLight
+    } else {
+        a.polarity
+    };
+    // The flags as a config table: what a config file with these keys says.
+    let mut t = toml::Table::new();
+    let mut set = |key: &str, v: toml::Value| {
+        ifslab_experiments::sweep::expand::set_dotted(&mut t, key, v)
+            .expect("flag keys are distinct config keys");
+    };
+    set("paper", a.paper.into());
+    set("seed", (a.seed as i64).into());
+    if let Some(n) = a.iters {
+        set("iterations", (n as i64).into());
+    }
+    set("checkpoint_every", (a.checkpoint_every as i64).into());
+    set(
+        if is_image {
+            "target.image"
         } else {
-            a.polarity
+            "target.code"
         },
+        spec.clone().into(),
+    );
+    set("target.size", (a.size as i64).into());
+    set("target.polarity", value(&polarity)?);
+    set("model.family", a.family.clone().into());
+    set("model.maps", (a.maps as i64).into());
+    let parameterisation = match a.param.as_str() {
+        "svd" => ParamKind::Svd,
+        "naive" => ParamKind::Naive,
+        "rsr" => ParamKind::Rsr,
+        other => anyhow::bail!("unknown parameterisation `{other}`: use svd, naive or rsr"),
     };
-    let init = match a.init.as_str() {
-        "random" => InitKind::Random,
-        "em" => InitKind::Em,
-        other => anyhow::bail!("unknown --init `{other}`: use em or random"),
-    };
-    let mut strategy = match (a.strategy.as_str(), init) {
-        // From an EM fit the paper's hot annealing would throw the fit away.
-        ("hybrid", InitKind::Em) => StrategyConfig::new(&ColdHybridConfig::default()),
+    set("model.parameterisation", value(&parameterisation)?);
+    if let Some(init) = &a.init {
+        let kind = match init.as_str() {
+            "random" => InitKind::Random,
+            "em" => InitKind::Em,
+            other => anyhow::bail!("unknown --init `{other}`: use em or random"),
+        };
+        set("model.init", value(&kind)?);
+    }
+    if let Some(n) = a.trajectories {
+        set("generator.trajectories", (n as i64).into());
+    }
+    if let Some(n) = a.length {
+        set("generator.length", (n as i64).into());
+    }
+    set("renderer.supersample", (a.supersample as i64).into());
+    set("renderer.sigma", a.sigma.into());
+    if let Some(end) = a.sigma_final {
+        set("renderer.sigma_final", end.into());
+    }
+    if !a.device.is_cpu() {
+        set("renderer.device", value(&a.device)?);
+    }
+    if let Some(name) = &a.strategy {
         // Command-line spelling with hyphens (`learning-fractals`) or underscores.
-        (name, _) => StrategyConfig::by_name(&name.replace('-', "_"))?,
-    };
+        let name = name.replace('-', "_");
+        let em = a
+            .init
+            .as_deref()
+            .unwrap_or(if a.paper { "random" } else { "em" })
+            == "em";
+        // From an EM fit the paper's hot annealing would throw the fit away.
+        let kind = if name == HybridConfig::KIND && em {
+            ColdHybridConfig::KIND.to_owned()
+        } else {
+            name
+        };
+        StrategyConfig::by_name(&kind)?;
+        set("strategy.kind", kind.into());
+    }
+    let mut cfg = InversionConfig::from_table(t, Path::new("the command line"))?;
+    cfg.output = Some(a.output.clone());
+    let strategy = &mut cfg.strategy;
     if let Some(lr) = a.lr {
         let applied = strategy.update(|c: &mut AdamConfig| c.lr = lr)
             || strategy.update(|c: &mut NoisyConfig| c.adam.lr = lr)
@@ -165,40 +235,6 @@ fn config_from_flags(a: &Args) -> anyhow::Result<InversionConfig> {
             strategy.name()
         );
     }
-    let parameterisation = match a.param.as_str() {
-        "svd" => ParamKind::Svd,
-        "naive" => ParamKind::Naive,
-        "rsr" => ParamKind::Rsr,
-        other => anyhow::bail!("unknown parameterisation `{other}`: use svd, naive or rsr"),
-    };
-    let cfg = InversionConfig {
-        seed: a.seed,
-        iterations: a.iters,
-        checkpoint_every: a.checkpoint_every,
-        output: Some(a.output.clone()),
-        target,
-        model: ModelConfig {
-            family: a.family.clone(),
-            maps: a.maps,
-            parameterisation,
-            init,
-            ..Default::default()
-        },
-        generator: GeneratorConfig {
-            trajectories: a.trajectories,
-            length: a.length,
-            ..GeneratorConfig::default()
-        },
-        renderer: RendererConfig {
-            supersample: a.supersample,
-            sigma: a.sigma,
-            sigma_final: a.sigma_final,
-            device: a.device,
-            ..RendererConfig::default()
-        },
-        loss: Default::default(),
-        strategy,
-    };
     // A baseline whose recipe is more than an optimiser: its parameterisation, renderer,
     // generator and loss come with it (the flags for those are then not used).
     let lf = ifslab_strategies::optim::learning_fractals::LearningFractalsConfig::KIND;
@@ -209,4 +245,9 @@ fn config_from_flags(a: &Args) -> anyhow::Result<InversionConfig> {
     };
     cfg.validate()?;
     Ok(cfg)
+}
+
+/// A flag's value as a config file writes it.
+fn value<T: serde::Serialize>(v: &T) -> anyhow::Result<toml::Value> {
+    Ok(toml::Value::try_from(v)?)
 }

@@ -2,7 +2,7 @@
 //! pattern's control points to an image, `render` a pattern (built-in, file, or a fit's
 //! `pattern.json`) to a PNG.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use ifslab::model::segment::{BUILTIN_PATTERNS, PatternFile, builtin};
@@ -10,9 +10,10 @@ use ifslab::render::FIT_FILL;
 use ifslab::render::image_io::{BitDepth, save_grey_png};
 use ifslab::render::sdf::{SdfRaster, SdfRenderConfig, SdfView, WordTree};
 use ifslab_experiments::runs::RunConfig;
+use ifslab_strategies::driver::Params;
 use ifslab_strategies::optim::adam::AdamConfig;
-use ifslab_strategies::problems::image::{Polarity, StrategyConfig};
-use ifslab_strategies::problems::sdf::{SdfConfig, SdfInit};
+use ifslab_strategies::problems::image::Polarity;
+use ifslab_strategies::problems::sdf::SdfInit;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -28,69 +29,89 @@ pub enum Command {
     Render(RenderArgs),
 }
 
+/// `ifslab sdf fit`'s flags: a shorthand for a `problem = "sdf"` config. Flags left out are
+/// left out of the config too, so the recipe (ifslab's, or Scott's with `--paper`) decides
+/// them exactly as it does for `ifslab run`.
 #[derive(clap::Args, Debug)]
 pub struct FitArgs {
     /// The target image (the shape dark on light, or bright on dark: see --polarity).
-    pub target: PathBuf,
+    #[arg(required_unless_present = "resume")]
+    pub target: Option<PathBuf>,
     /// A built-in pattern (koch, carpet, carpet-square) or a pattern file (.json).
     #[arg(long, default_value = "koch")]
     pub pattern: String,
-    /// Which way round the target's shape is drawn: auto (decide from the border),
+    /// Scott's recipe instead of ifslab's: the best-fit-line start, --sigma as given, 128².
+    /// ifslab's (the default): the best of five starts, σ as wide as the picture's strokes,
+    /// 192² (robustness/README.md measures both).
+    #[arg(long)]
+    pub paper: bool,
+    /// Which way round the target's shape is drawn: auto (decide from the picture),
     /// bright-on-dark or dark-on-light.
-    #[arg(long, default_value = "auto")]
-    pub polarity: Polarity,
-    /// Recursion depth K.
-    #[arg(long, default_value_t = 5)]
-    pub depth: usize,
-    /// Side of the (square, framed) target in pixels.
-    #[arg(long, default_value_t = 128)]
-    pub size: usize,
-    /// Width σ of the drawn figure in pixels.
-    #[arg(long, default_value_t = 1.5)]
-    pub sigma: f64,
+    #[arg(long)]
+    pub polarity: Option<Polarity>,
+    /// Recursion depth K. [default: 5]
+    #[arg(long)]
+    pub depth: Option<usize>,
+    /// Side of the (square, framed) target in pixels. [default: 192; --paper: 128]
+    #[arg(long)]
+    pub size: Option<usize>,
+    /// Width σ of the drawn figure in pixels; with a segment base figure ifslab's recipe
+    /// takes the picture's stroke width instead (set --sigma to fix it). [default: 1.5]
+    #[arg(long)]
+    pub sigma: Option<f64>,
     /// Coarse to fine: σ at the first iteration, shrinking geometrically to --sigma.
+    /// [default: none]
     #[arg(long)]
     pub sigma_start: Option<f64>,
-    /// Iterations over which σ shrinks from --sigma-start (default: all of them).
+    /// Iterations over which σ shrinks from --sigma-start. [default: all of them]
     #[arg(long)]
     pub sigma_iterations: Option<u64>,
-    /// 2×2 poolings of the multi-scale MSE after the full-resolution level.
-    #[arg(long, default_value_t = 4)]
-    pub levels: usize,
-    /// Iterations.
-    #[arg(long, default_value_t = 300)]
-    pub iterations: u64,
-    /// Adam's learning rate (control points live in the unit square).
-    #[arg(long, default_value_t = 2e-3)]
-    pub lr: f64,
-    /// Weight of the multi-scale MSE on distance values (0: pixels only).
-    #[arg(long, default_value_t = 0.0)]
-    pub distance_weight: f64,
-    /// Weight of the self-crossing penalty on the base figure's copies (0: off).
-    #[arg(long, default_value_t = 0.0)]
-    pub crossing_weight: f64,
-    /// Length of the words whose copies the crossing penalty compares (1–3).
-    #[arg(long, default_value_t = 1)]
-    pub crossing_depth: usize,
+    /// 2×2 poolings of the multi-scale MSE after the full-resolution level. [default: 4]
+    #[arg(long)]
+    pub levels: Option<usize>,
+    /// Iterations. [default: 300]
+    #[arg(long)]
+    pub iterations: Option<u64>,
+    /// Adam's learning rate (control points live in the unit square). [default: 2e-3]
+    #[arg(long)]
+    pub lr: Option<f64>,
+    /// Weight of the multi-scale MSE on distance values (0: pixels only). [default: 0]
+    #[arg(long)]
+    pub distance_weight: Option<f64>,
+    /// Weight of the self-crossing penalty on the base figure's copies (0: off). [default: 0]
+    #[arg(long)]
+    pub crossing_weight: Option<f64>,
+    /// Length of the words whose copies the crossing penalty compares (1–3). [default: 1]
+    #[arg(long)]
+    pub crossing_depth: Option<usize>,
     /// Weight of the barrier on map scales above --max-scale (0: off; keeps the fit an IFS).
-    #[arg(long, default_value_t = 0.0)]
-    pub scale_barrier: f64,
-    /// The scale above which the barrier acts, in (0, 1).
-    #[arg(long, default_value_t = 0.9)]
-    pub max_scale: f64,
-    /// Where the points start: line (the paper's best-fit line), pattern, given.
-    #[arg(long, default_value = "line")]
-    pub init: String,
-    /// Gaussian noise added to the start (units of the target's side).
-    #[arg(long, default_value_t = 0.0)]
-    pub jitter: f64,
-    /// Seed (of the jitter).
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
+    /// [default: 0]
+    #[arg(long)]
+    pub scale_barrier: Option<f64>,
+    /// The scale above which the barrier acts, in (0, 1). [default: 0.9]
+    #[arg(long)]
+    pub max_scale: Option<f64>,
+    /// Where the points start: line (the paper's best-fit line), pattern (its shape on that
+    /// line), given (the pattern file's points), best (the best of several starts after a
+    /// few coarse steps each). [default: best; --paper: line]
+    #[arg(long)]
+    pub init: Option<String>,
+    /// Gaussian noise added to the start (units of the target's side). [default: 0]
+    #[arg(long)]
+    pub jitter: Option<f64>,
+    /// Seed (of the jitter). [default: 0]
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// The pattern that drew the target (a built-in name or a pattern file), where it is
+    /// known: the summary then reports `truth_iou`, the fit against it, both drawn framed in
+    /// their own boxes at 128² (a score that does not depend on the picture's line width).
+    #[arg(long)]
+    pub truth: Option<String>,
     /// Run folder.
     #[arg(short, long, default_value = "out/sdf")]
     pub output: PathBuf,
-    /// Continue the run in the output folder from its last checkpoint.
+    /// Continue the run in the output folder from its last checkpoint (its config.toml says
+    /// what it is; no other flag is read).
     #[arg(long)]
     pub resume: bool,
 }
@@ -122,34 +143,24 @@ pub fn run(a: Args) -> anyhow::Result<()> {
 }
 
 fn fit(a: FitArgs) -> anyhow::Result<()> {
-    let mut cfg = SdfConfig::new(a.target, a.pattern);
-    cfg.depth = a.depth;
-    cfg.polarity = a.polarity;
-    cfg.size = a.size;
-    cfg.sigma = a.sigma;
-    cfg.sigma_start = a.sigma_start;
-    cfg.sigma_iterations = a.sigma_iterations;
-    cfg.loss.levels = a.levels;
-    cfg.iterations = a.iterations;
-    cfg.seed = a.seed;
-    cfg.loss.distance = a.distance_weight;
-    cfg.loss.crossing = a.crossing_weight;
-    cfg.loss.crossing_depth = a.crossing_depth;
-    cfg.loss.scale_barrier = a.scale_barrier;
-    cfg.loss.max_scale = a.max_scale;
-    cfg.init.kind = match a.init.as_str() {
-        "line" => SdfInit::Line,
-        "pattern" => SdfInit::Pattern,
-        "given" => SdfInit::Given,
-        other => anyhow::bail!("--init must be line, pattern or given, got `{other}`"),
+    let run = if a.resume {
+        let path = a
+            .output
+            .join(ifslab_experiments::runs::inversion::CONFIG_FILE);
+        // The run's own config, with the flags given now on top (`--iterations 400`
+        // continues a fit further).
+        let run = RunConfig::load_resolved_with(&path, flag_table(&a)?)
+            .with_context(|| format!("reading the run in {}", a.output.display()))?;
+        anyhow::ensure!(
+            run.problem() == "sdf",
+            "{} holds a `{}` run; `ifslab sdf fit --resume` continues segment-pattern fits",
+            a.output.display(),
+            run.problem()
+        );
+        run
+    } else {
+        fit_config(&a)?
     };
-    cfg.init.jitter = a.jitter;
-    cfg.strategy = StrategyConfig::new(&AdamConfig {
-        lr: a.lr,
-        ..AdamConfig::default()
-    });
-    cfg.output = Some(a.output.clone());
-    let run = RunConfig::Sdf(Box::new(cfg));
     let r = run.run(
         &a.output,
         a.resume,
@@ -157,6 +168,73 @@ fn fit(a: FitArgs) -> anyhow::Result<()> {
     )?;
     println!("{}: {}", a.output.display(), r.headline);
     Ok(())
+}
+
+/// The flags as a `problem = "sdf"` config, resolved by the recipe they name.
+fn fit_config(a: &FitArgs) -> anyhow::Result<RunConfig> {
+    let target = a.target.clone().expect("clap: a target unless --resume");
+    let mut t = flag_table(a)?;
+    for (key, value) in [
+        ("problem", "sdf".into()),
+        ("paper", a.paper.into()),
+        ("target", target.to_string_lossy().into_owned().into()),
+        ("pattern", a.pattern.clone().into()),
+        ("output", a.output.to_string_lossy().into_owned().into()),
+    ] {
+        t.insert(key.into(), value);
+    }
+    // Relative names are the command line's: read from the working directory.
+    RunConfig::from_table(t, Path::new("./the command line"))
+}
+
+/// The settings given as flags (those left out are not in the table).
+fn flag_table(a: &FitArgs) -> anyhow::Result<toml::Table> {
+    let mut t = toml::Table::new();
+    let mut set = |key: &str, v: Option<toml::Value>| {
+        if let Some(v) = v {
+            ifslab_experiments::sweep::expand::set_dotted(&mut t, key, v)
+                .expect("flag keys are distinct config keys");
+        }
+    };
+    let int = |v: Option<u64>| v.map(|v| toml::Value::Integer(v as i64));
+    let size = |v: Option<usize>| v.map(|v| toml::Value::Integer(v as i64));
+    let float = |v: Option<f64>| v.map(toml::Value::Float);
+    set(
+        "polarity",
+        a.polarity.map(|p| toml::Value::try_from(p)).transpose()?,
+    );
+    set("depth", size(a.depth));
+    set("truth", a.truth.clone().map(toml::Value::String));
+    set("size", size(a.size));
+    set("sigma", float(a.sigma));
+    // A width given is the width drawn.
+    set("stroke_sigma", a.sigma.map(|_| false.into()));
+    set("sigma_start", float(a.sigma_start));
+    set("sigma_iterations", int(a.sigma_iterations));
+    set("loss.levels", size(a.levels));
+    set("iterations", int(a.iterations));
+    set("seed", int(a.seed));
+    set("loss.distance", float(a.distance_weight));
+    set("loss.crossing", float(a.crossing_weight));
+    set("loss.crossing_depth", size(a.crossing_depth));
+    set("loss.scale_barrier", float(a.scale_barrier));
+    set("loss.max_scale", float(a.max_scale));
+    if let Some(init) = &a.init {
+        let kind = match init.as_str() {
+            "line" => SdfInit::Line,
+            "pattern" => SdfInit::Pattern,
+            "given" => SdfInit::Given,
+            "best" => SdfInit::Best,
+            other => anyhow::bail!("--init must be line, pattern, given or best, got `{other}`"),
+        };
+        set("init.kind", Some(toml::Value::try_from(kind)?));
+    }
+    set("init.jitter", float(a.jitter));
+    if let Some(lr) = a.lr {
+        set("strategy.kind", Some(AdamConfig::KIND.into()));
+        set("strategy.lr", Some(lr.into()));
+    }
+    Ok(t)
 }
 
 fn render(a: RenderArgs) -> anyhow::Result<()> {

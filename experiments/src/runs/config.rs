@@ -11,6 +11,7 @@ use ifslab::loss::lpips::default_lpips_weights_path;
 use ifslab_strategies::problems::flame::FlameLearnConfig;
 use ifslab_strategies::problems::image::InversionConfig;
 use ifslab_strategies::problems::sdf::SdfConfig;
+use ifslab_strategies::recipe;
 use serde::Serialize;
 
 use crate::progress::Progress;
@@ -57,6 +58,12 @@ impl RunConfig {
     /// The problems a config can name, in the order the help text lists them.
     pub const PROBLEMS: &'static [&'static str] = &["image", "points", "texture", "sdf", "flame"];
 
+    /// The problems whose `paper` key only picks the defaults of keys a config leaves out
+    /// ([`ifslab_strategies::recipe`]): their resolved tables spell every choice out, so the
+    /// key takes no part in a run's id. (`points` has its own `paper` switch, which also
+    /// changes values no key spells out, and stays in the id.)
+    pub const HAS_RECIPES: &'static [&'static str] = &["image", "sdf", "flame"];
+
     /// A config from a parsed TOML table; `origin` (the file it came from) names it in
     /// errors and relative file names in it are read from its folder.
     pub fn from_table(mut table: toml::Table, origin: &Path) -> anyhow::Result<Self> {
@@ -73,7 +80,7 @@ impl RunConfig {
         let text = toml::to_string(&table).context("re-serialising the config")?;
         match problem.as_str() {
             "image" => {
-                let cfg = InversionConfig::from_toml(&text, origin)?.relative_to(dir);
+                let cfg = InversionConfig::from_table(table, origin)?.relative_to(dir);
                 Ok(RunConfig::Image(Box::new(cfg)))
             }
             "points" => {
@@ -85,11 +92,11 @@ impl RunConfig {
                 Ok(RunConfig::Texture(Box::new(cfg)))
             }
             "sdf" => {
-                let cfg = SdfConfig::from_toml(&text, origin)?.relative_to(dir);
+                let cfg = SdfConfig::from_table(table, origin)?.relative_to(dir);
                 Ok(RunConfig::Sdf(Box::new(cfg)))
             }
             "flame" => {
-                let cfg = FlameLearnConfig::from_toml(&text, origin)?.relative_to(dir);
+                let cfg = FlameLearnConfig::from_table(table, origin)?.relative_to(dir);
                 Ok(RunConfig::Flame(Box::new(cfg)))
             }
             other => bail!(
@@ -111,6 +118,41 @@ impl RunConfig {
     /// Reads and validates a config file.
     pub fn load(path: &Path) -> anyhow::Result<Self> {
         RunConfig::load_with(path, &[])
+    }
+
+    /// Reads the resolved config a run wrote into its folder (`config.toml`), for resuming,
+    /// adopting or slicing that run. A resolved config written before recipes existed has
+    /// no `paper` key and meant the paper's defaults ([`recipe::mark_legacy`]); it is read
+    /// that way, so an old run resumes as it started.
+    pub fn load_resolved(path: &Path) -> anyhow::Result<Self> {
+        RunConfig::load_resolved_with(path, toml::Table::new())
+    }
+
+    /// [`RunConfig::load_resolved`] with `overrides` (a table of keys, nested tables merged
+    /// key by key) applied on top: a resumed run told to go on longer, say.
+    pub fn load_resolved_with(path: &Path, overrides: toml::Table) -> anyhow::Result<Self> {
+        let text =
+            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        let mut table: toml::Table = text
+            .parse()
+            .with_context(|| format!("{} is not valid TOML", path.display()))?;
+        let problem = table
+            .get(PROBLEM_KEY)
+            .and_then(toml::Value::as_str)
+            .unwrap_or(DEFAULT_PROBLEM)
+            .to_owned();
+        if Self::HAS_RECIPES.contains(&problem.as_str()) {
+            recipe::mark_legacy(&mut table);
+        }
+        // A resolved points config writes `reflections` and `trim_outliers` only when they
+        // are on: absent, they were off (and absent from every run made before they existed).
+        if problem == "points" {
+            for key in ["reflections", "trim_outliers"] {
+                table.entry(key).or_insert(toml::Value::Boolean(false));
+            }
+        }
+        merge_into(&mut table, overrides);
+        RunConfig::from_table(table, path)
     }
 
     /// Reads a config file, applies `overrides` (`KEY=VALUE` with dotted keys, as
@@ -253,6 +295,20 @@ impl RunConfig {
     pub fn output_dir(&self, cli: Option<PathBuf>, default: &str) -> PathBuf {
         cli.or_else(|| self.output().map(Path::to_path_buf))
             .unwrap_or_else(|| PathBuf::from(default))
+    }
+}
+
+/// `overrides` written into `table`, tables merged key by key, other values replaced.
+fn merge_into(table: &mut toml::Table, overrides: toml::Table) {
+    for (k, v) in overrides {
+        match (table.get_mut(&k), v) {
+            (Some(toml::Value::Table(mine)), toml::Value::Table(theirs)) => {
+                merge_into(mine, theirs)
+            }
+            (_, v) => {
+                table.insert(k, v);
+            }
+        }
     }
 }
 

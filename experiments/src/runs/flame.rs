@@ -12,7 +12,7 @@ use ifslab::image::Image;
 use ifslab::model::flame::write_flames;
 use ifslab::render::flame_diff::{DiffFlameConfig, GeneratorOrder, forward};
 use ifslab_strategies::problems::flame::{
-    BackgroundConfig, FlameLearnConfig, load_rgb_target, run_flame,
+    BackgroundConfig, FlameLearnConfig, load_rgb_picture, run_flame,
 };
 use ifslab_strategies::problems::image::ensure_new_run_dir;
 use serde::Serialize;
@@ -38,6 +38,12 @@ pub struct FlameSummary {
     pub start_mse: f64,
     /// The same at the returned θ.
     pub mse: f64,
+    /// The MSE of the best flat colour (the target's mean colour): what a fit must beat to
+    /// have learned anything of the picture.
+    pub flat_mse: f64,
+    /// The returned render's MSE (the authors' measure, computed from the image) over
+    /// `flat_mse`: below 1 the flame draws more of the picture than a flat colour does.
+    pub mse_ratio: f64,
     /// `last` or `start`.
     pub returned: String,
     /// Layers × generators.
@@ -51,13 +57,16 @@ impl FlameSummary {
     /// A line for the terminal.
     pub fn headline(&self) -> String {
         format!(
-            "{} iterations of {} in {:.1} s ({:.1} ms/iteration), MSE {:.4} → {:.4}",
+            "{} iterations of {} in {:.1} s ({:.1} ms/iteration), MSE {:.4} → {:.4} \
+             ({:.2} of a flat colour's {:.4})",
             self.iterations,
             self.strategy,
             self.seconds,
             1e3 * self.seconds_per_iteration,
             self.start_mse,
-            self.mse
+            self.mse,
+            self.mse_ratio,
+            self.flat_mse
         )
     }
 }
@@ -66,6 +75,34 @@ fn save_rgb(path: &Path, planes: &[f64], size: usize) -> anyhow::Result<()> {
     let v: Vec<f32> = planes.iter().map(|&x| x as f32).collect();
     Image::new(size as u32, size as u32, 3, v)?.save_png(path)?;
     Ok(())
+}
+
+/// The authors' MSE of two RGB images (three planes): squared error summed over the
+/// channels, averaged over the pixels.
+fn rgb_mse(a: &[f64], b: &[f32]) -> f64 {
+    let pixels = (a.len() / 3).max(1);
+    a.iter()
+        .zip(b)
+        .map(|(&x, &y)| (x - y as f64).powi(2))
+        .sum::<f64>()
+        / pixels as f64
+}
+
+/// The same MSE for the best flat colour, the target's mean colour: its variance summed
+/// over the channels.
+fn flat_colour_mse(target: &[f32], size: usize) -> f64 {
+    let n = size * size;
+    (0..3)
+        .map(|ch| {
+            let plane = &target[ch * n..(ch + 1) * n];
+            let mean = plane.iter().map(|&v| v as f64).sum::<f64>() / n as f64;
+            plane
+                .iter()
+                .map(|&v| (v as f64 - mean).powi(2))
+                .sum::<f64>()
+                / n as f64
+        })
+        .sum()
 }
 
 /// Target and render side by side (a 4-pixel white gap).
@@ -94,14 +131,16 @@ pub fn run(
 ) -> anyhow::Result<FlameSummary> {
     cfg.validate()?;
     let size = cfg.sampler.size;
-    // Transparent targets are laid over the fixed background colour (white for `auto`
-    // and `learned`).
+    // Transparent targets are laid over the fixed background colour; for `auto` and
+    // `learned` over black or white, whichever their opaque pixels stand out from.
     let bg = match &cfg.background {
-        BackgroundConfig::Rgb(c) => *c,
-        BackgroundConfig::Named(n) if n == "black" => [0.0; 3],
-        BackgroundConfig::Named(_) => [1.0; 3],
+        BackgroundConfig::Rgb(c) => Some(*c),
+        BackgroundConfig::Named(n) if n == "black" => Some([0.0; 3]),
+        BackgroundConfig::Named(n) if n == "white" => Some([1.0; 3]),
+        BackgroundConfig::Named(_) if cfg.paper => Some([1.0; 3]),
+        BackgroundConfig::Named(_) => None,
     };
-    let (target, note) = load_rgb_target(&cfg.target, size, bg)?;
+    let (target, note) = load_rgb_picture(&cfg.target, size, bg, cfg.frame)?;
     if !resume {
         ensure_new_run_dir(dir)?;
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
@@ -157,6 +196,7 @@ pub fn run(
     write_flames(&dir.join(LEARNED_FLAME_FILE), &flames)?;
     loss_plot(&out.log, &dir.join("loss.png"))?;
     let fresh = out.iterations.saturating_sub(done_before).max(1);
+    let flat_mse = flat_colour_mse(&target, size);
     let summary = FlameSummary {
         strategy: cfg.strategy.name().to_owned(),
         iterations: out.iterations,
@@ -164,6 +204,8 @@ pub fn run(
         seconds_per_iteration: out.seconds / fresh as f64,
         start_mse: out.start_loss,
         mse: out.loss,
+        flat_mse,
+        mse_ratio: rgb_mse(&out.image, &target) / flat_mse.max(f64::MIN_POSITIVE),
         returned: out.returned.to_owned(),
         generators: stack.layers.iter().map(|l| l.len()).collect(),
         target_note: note,

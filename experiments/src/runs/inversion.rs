@@ -12,8 +12,8 @@ use ifslab::model::{Affine2, Framing, IfsCode};
 use ifslab::render::image_io::{BitDepth, save_grey_png};
 use ifslab::render::{RenderConfig, View, Zoom, render};
 use ifslab_strategies::problems::image::{
-    FRAMED_TARGET_FILE, InversionConfig, InversionOutcome, ensure_new_run_dir, load_framed_target,
-    load_target, run_inversion, save_framed_target,
+    FRAMED_TARGET_FILE, InversionConfig, InversionOutcome, TARGET_READING_FILE, ensure_new_run_dir,
+    load_framed_picture, load_framed_target, load_target, run_inversion, save_framed_target,
 };
 use plotters::prelude::*;
 use serde::Serialize;
@@ -146,6 +146,56 @@ pub struct Summary {
     /// zoomed-in patches) and their means.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub suite: Option<crate::suite::SuiteScore>,
+    /// For an image target drawn by a known code (`target.truth`): the recovered code
+    /// against that code ([`truth_score`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub truth: Option<TruthScore>,
+}
+
+/// Side of the full views a recovered code and its truth are compared at.
+pub const TRUTH_SIZE: usize = 256;
+
+/// A recovered code against the code that drew its target: both drawn by the evaluation
+/// renderer ([`EVAL_POINTS`] points, [`EVAL_SUPERSAMPLE`]² binary supersampling) at
+/// [`TRUTH_SIZE`]², each in its own fitted window — a suite's full view — and compared with
+/// the paper's metrics (12.5 % border crop). The picture's framing, colours, noise and file
+/// format play no part.
+#[derive(Clone, Debug, Serialize)]
+pub struct TruthScore {
+    /// IoU of the `> 0` masks.
+    pub iou: f64,
+    /// F1 (Dice) of the `> 0` masks.
+    pub f1: f64,
+    /// PSNR on the foreground pixels.
+    pub psnr: f64,
+    /// SSIM on the foreground pixels.
+    pub ssim: f64,
+}
+
+/// [`TruthScore`] of `maps` against the code `spec` names; writes the truth's full view as
+/// `truth.png` into `dir`.
+pub fn truth_score(
+    spec: &str,
+    maps: &[Affine2],
+    seed: u64,
+    dir: &Path,
+) -> anyhow::Result<TruthScore> {
+    let code = resolve_code(spec).with_context(|| format!("`target.truth` {spec}"))?;
+    let truth_maps = code
+        .affine2()
+        .with_context(|| format!("`target.truth` {spec} must be a 2-D code"))?;
+    let cfg = eval_config(TRUTH_SIZE, seed);
+    let truth = render(&truth_maps, &code.evaluation_probabilities()?, &cfg, None)?;
+    truth.save_png(&dir.join("truth.png"), BitDepth::Eight, false)?;
+    let probs = IfsCode::from_affine2(None, maps)?.evaluation_probabilities()?;
+    let ours = render(maps, &probs, &cfg, None)?;
+    let m = paper_metrics::<f32>(&ours.values, &truth.values, TRUTH_SIZE, TRUTH_SIZE, None)?;
+    Ok(TruthScore {
+        iou: m.iou,
+        f1: m.f1,
+        psnr: m.psnr,
+        ssim: m.ssim,
+    })
 }
 
 impl Summary {
@@ -167,8 +217,14 @@ impl Summary {
                 s.ssim
             )
         });
+        let truth = self.truth.as_ref().map_or_else(String::new, |t| {
+            format!(
+                "; against the true code: IoU {:.3}, F1 {:.3}, SSIM {:.3}",
+                t.iou, t.f1, t.ssim
+            )
+        });
         format!(
-            "IoU {:.3}, F1 {:.3}, PSNR {:.2} dB, SSIM {:.3}{lpips}{suite}",
+            "IoU {:.3}, F1 {:.3}, PSNR {:.2} dB, SSIM {:.3}{lpips}{suite}{truth}",
             self.iou, self.f1, self.psnr, self.ssim
         )
     }
@@ -188,8 +244,18 @@ pub fn run_and_report(
         run_target(cfg, dir)?
     } else {
         ensure_new_run_dir(dir)?;
-        let target = prepare_target(cfg)?;
+        let (target, reading) = match &cfg.target.image {
+            Some(path) => {
+                let f = load_framed_picture(path, size, cfg.target.polarity)
+                    .with_context(|| format!("preparing the target {}", path.display()))?;
+                (f.values, Some(f.reading))
+            }
+            None => (prepare_target(cfg)?, None),
+        };
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        if let Some(r) = reading {
+            r.save(&dir.join(TARGET_READING_FILE))?;
+        }
         let resolved = cfg.with_absolute_paths()?;
         ifslab::io::write_atomic(&dir.join(CONFIG_FILE), resolved.to_toml().as_bytes())?;
         save_framed_target(&dir.join(FRAMED_TARGET_FILE), &target, size)?;
@@ -230,6 +296,10 @@ pub fn run_and_report(
         }
         _ => None,
     };
+    let truth = match &cfg.target.truth {
+        Some(spec) => Some(truth_score(spec, &outcome.maps, cfg.seed, dir)?),
+        None => None,
+    };
     let summary = Summary {
         strategy: cfg.strategy.name().into(),
         iterations: outcome.iterations,
@@ -244,6 +314,7 @@ pub fn run_and_report(
         lpips_note: outcome.lpips_note.clone(),
         selection: outcome.selection.clone(),
         suite,
+        truth,
     };
     ifslab::io::write_atomic(
         &dir.join("summary.json"),

@@ -10,14 +10,15 @@ use anyhow::{Context, bail};
 use ifslab::model::IfsCode;
 use ifslab::model::segment::PatternFile;
 use ifslab_strategies::problems::image::{
-    Directions, FRAMED_TARGET_FILE, ImageProblem, InversionConfig, Landscape, LandscapeConfig,
-    landscape, load_framed_target,
+    Directions, FRAMED_TARGET_FILE, ImageProblem, Landscape, LandscapeConfig, TARGET_READING_FILE,
+    TargetReading, landscape, load_framed_target,
 };
 use ifslab_strategies::problems::sdf::{SdfConfig, sdf_landscape, sdf_problem};
 
 use crate::codes::resolve_code;
 use crate::plot::{Heat, heatmaps};
 use crate::progress::Progress;
+use crate::runs::RunConfig;
 use crate::runs::inversion::{CONFIG_FILE, run_target};
 use crate::runs::sdf::FITTED_PATTERN_FILE;
 
@@ -65,11 +66,23 @@ pub fn run_landscape(
     progress: &dyn Progress,
 ) -> anyhow::Result<LandscapeReport> {
     let cfg_path = run_dir.join(CONFIG_FILE);
-    if problem_of(&cfg_path)?.as_deref() == Some("sdf") {
-        return run_sdf_landscape(run_dir, centre, lc, out, progress);
+    if !cfg_path.is_file() {
+        bail!(
+            "{} is not a run folder (no readable {CONFIG_FILE})",
+            run_dir.display()
+        );
     }
-    let cfg = InversionConfig::load(&cfg_path)
-        .with_context(|| format!("{} is not a run folder", run_dir.display()))?;
+    let cfg = match RunConfig::load_resolved(&cfg_path)
+        .with_context(|| format!("{} is not a run folder", run_dir.display()))?
+    {
+        RunConfig::Image(c) => *c,
+        RunConfig::Sdf(c) => return run_sdf_landscape(&c, run_dir, centre, lc, out, progress),
+        other => bail!(
+            "{}: a `{}` run has no loss landscape (image and sdf runs do)",
+            run_dir.display(),
+            other.problem()
+        ),
+    };
     let maps = match centre {
         Centre::Recovered => IfsCode::load(run_dir.join("code.json"))
             .with_context(|| format!("{} has no recovered code", run_dir.display()))?
@@ -108,44 +121,15 @@ pub fn run_landscape(
     write_landscape(&l, lc, out, &title, "multi-scale MSE", "θ")
 }
 
-/// The `problem` key of the config at `path` (`None` when absent: an image run), with a
-/// clear error when the folder holds no readable config.
-fn problem_of(path: &Path) -> anyhow::Result<Option<String>> {
-    let dir = path.parent().unwrap_or(Path::new(""));
-    let text = std::fs::read_to_string(path).with_context(|| {
-        format!(
-            "{} is not a run folder (no readable {CONFIG_FILE})",
-            dir.display()
-        )
-    })?;
-    let table: toml::Table = text.parse().with_context(|| {
-        format!(
-            "{} is not a run folder: {} is not valid TOML",
-            dir.display(),
-            path.display()
-        )
-    })?;
-    Ok(table
-        .get("problem")
-        .and_then(|v| v.as_str())
-        .map(str::to_owned))
-}
-
 /// The landscape of a segment-map fit: the loss over a slice of control-point space.
 fn run_sdf_landscape(
+    cfg: &SdfConfig,
     run_dir: &Path,
     centre: Centre,
     lc: &LandscapeConfig,
     out: &Path,
     progress: &dyn Progress,
 ) -> anyhow::Result<LandscapeReport> {
-    let cfg_path = run_dir.join(CONFIG_FILE);
-    let text = std::fs::read_to_string(&cfg_path)?;
-    let mut table: toml::Table = text.parse()?;
-    table.remove("problem");
-    let cfg = SdfConfig::from_toml(&toml::to_string(&table)?, &cfg_path)
-        .with_context(|| format!("{} is not a segment-map run folder", run_dir.display()))?
-        .relative_to(run_dir);
     if cfg.learned.is_some() {
         bail!(
             "{}: the landscape of a learned-pattern fit is not supported",
@@ -172,7 +156,13 @@ fn run_sdf_landscape(
         .iter()
         .map(|&v| v as f64)
         .collect();
-    let problem = sdf_problem(&cfg, ink)?;
+    let reading = run_dir.join(TARGET_READING_FILE);
+    let stroke = if reading.is_file() {
+        TargetReading::load(&reading)?.framed_stroke()
+    } else {
+        None
+    };
+    let problem = sdf_problem(cfg, ink, stroke)?;
     lc.validate(theta.len())?;
     progress.start("landscape", (lc.resolution * lc.resolution) as u64);
     let l = sdf_landscape(&problem, &theta, lc, &|| progress.inc(1))?;

@@ -8,12 +8,17 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::Context;
-use ifslab::model::segment::PatternFile;
+use ifslab::model::segment::{Pattern, PatternFile, resolve_pattern};
+use ifslab::render::FIT_FILL;
 use ifslab::render::image_io::{BitDepth, save_grey_png};
+use ifslab::render::sdf::{SdfRaster, SdfRenderConfig, SdfView, WordTree};
 use ifslab_strategies::problems::image::{
-    FRAMED_TARGET_FILE, ensure_new_run_dir, load_framed_target, load_target, save_framed_target,
+    FRAMED_TARGET_FILE, TARGET_READING_FILE, TargetReading, ensure_new_run_dir,
+    load_framed_picture, load_framed_target, save_framed_target,
 };
-use ifslab_strategies::problems::sdf::{INK, SdfConfig, run_sdf, sdf_problem};
+use ifslab_strategies::problems::sdf::{
+    CUTOFF_SIGMAS, INK, SdfConfig, run_sdf, sdf_problem, stretch_ink,
+};
 use serde::Serialize;
 
 use crate::progress::{Progress, ProgressObserver};
@@ -35,12 +40,20 @@ pub struct SdfSummary {
     pub seconds: f64,
     /// Seconds per iteration of this process's part.
     pub seconds_per_iteration: f64,
+    /// Width σ the figure was drawn with at the end, in pixels (the config's, or the
+    /// target's stroke width with `stroke_sigma`).
+    pub sigma: f64,
     /// Loss of the returned control points.
     pub loss: f64,
     /// Plain MSE between the final render and the target.
     pub mse: f64,
     /// IoU of the render and the target thresholded at 0.5.
     pub iou: f64,
+    /// IoU against the pattern that drew the target (`truth` in the config), both drawn at
+    /// the fit's depth, [`TRUTH_SIZE`]² and σ [`TRUTH_SIGMA`] (whatever the fit's own
+    /// size and σ), each framed in its own box ([`pattern_iou`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub truth_iou: Option<f64>,
     /// `last` or `start` (see `SdfOutcome::returned`).
     pub returned: String,
     /// The returned control points.
@@ -63,6 +76,52 @@ impl SdfSummary {
     }
 }
 
+/// Side of the canvas a fitted pattern and its truth are compared on.
+pub const TRUTH_SIZE: usize = 128;
+/// Width σ (pixels of [`TRUTH_SIZE`]) both are drawn with when compared.
+pub const TRUTH_SIGMA: f64 = 1.5;
+
+/// The ink of `pattern` at `depth` and width `sigma`, framed in its own box on a `size²`
+/// canvas as a target is framed ([`FIT_FILL`]).
+fn framed_ink(
+    pattern: &Pattern,
+    size: usize,
+    depth: usize,
+    sigma: f64,
+) -> anyhow::Result<Vec<f64>> {
+    let tree = WordTree::new(&pattern.maps()?, pattern.base_points(), depth)?;
+    let (lo, hi) = tree.bbox();
+    let view = SdfView::around(lo, hi, size, FIT_FILL);
+    let r = SdfRaster::render(
+        pattern,
+        &view,
+        &SdfRenderConfig {
+            depth,
+            cutoff: Some(CUTOFF_SIGMAS * sigma),
+        },
+    )?;
+    Ok(r.image(sigma))
+}
+
+/// IoU of two patterns' ink (≥ [`INK`]), each drawn at `depth` and width `sigma` framed in
+/// its own box on a `size²` canvas: where they differ in shape, not in where a picture put
+/// them.
+pub fn pattern_iou(
+    a: &Pattern,
+    b: &Pattern,
+    size: usize,
+    depth: usize,
+    sigma: f64,
+) -> anyhow::Result<f64> {
+    let mask = |p: &Pattern| -> anyhow::Result<Vec<bool>> {
+        Ok(framed_ink(p, size, depth, sigma)?
+            .iter()
+            .map(|&v| v >= INK)
+            .collect())
+    };
+    Ok(ifslab::metrics::iou(&mask(a)?, &mask(b)?)?)
+}
+
 /// Runs (or resumes) the fit of `cfg` into `dir` and writes every output.
 pub fn run(
     cfg: &SdfConfig,
@@ -72,11 +131,25 @@ pub fn run(
 ) -> anyhow::Result<SdfSummary> {
     cfg.validate()?;
     let size = cfg.size;
-    let target: Vec<f32> = if resume {
-        load_framed_target(&dir.join(FRAMED_TARGET_FILE), size)?
+    let (target, reading): (Vec<f32>, Option<TargetReading>) = if resume {
+        let reading_file = dir.join(TARGET_READING_FILE);
+        (
+            load_framed_target(&dir.join(FRAMED_TARGET_FILE), size)?,
+            // Runs from before the reading was kept have none (nor use it).
+            reading_file
+                .is_file()
+                .then(|| TargetReading::load(&reading_file))
+                .transpose()?,
+        )
     } else {
         ensure_new_run_dir(dir)?;
-        let t = load_target(&cfg.target, size, cfg.polarity)?;
+        let framed = load_framed_picture(&cfg.target, size, cfg.polarity)?;
+        let mut t = framed.values;
+        stretch_ink(&mut t);
+        if let Some(spec) = &cfg.truth {
+            // A truth that does not load is refused before the fit, not after it.
+            resolve_pattern(spec).with_context(|| format!("`truth` {spec}"))?;
+        }
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         let resolved = crate::runs::RunConfig::Sdf(Box::new(cfg.clone())).to_table()?;
         ifslab::io::write_atomic(
@@ -84,8 +157,10 @@ pub fn run(
             toml::to_string_pretty(&resolved)?.as_bytes(),
         )?;
         save_framed_target(&dir.join(FRAMED_TARGET_FILE), &t, size)?;
-        t
+        framed.reading.save(&dir.join(TARGET_READING_FILE))?;
+        (t, Some(framed.reading))
     };
+    let stroke = reading.as_ref().and_then(TargetReading::framed_stroke);
     save_grey_png(
         &dir.join("target.png"),
         &target,
@@ -105,12 +180,13 @@ pub fn run(
     let out = run_sdf(
         cfg,
         ink.clone(),
+        stroke,
         dir,
         resume,
         vec![Box::new(ProgressObserver::new(progress))],
     )?;
     let seconds = clock.elapsed().as_secs_f64();
-    let problem = sdf_problem(cfg, ink.clone())?;
+    let problem = sdf_problem(cfg, ink.clone(), stroke)?;
     let fitted = problem.pattern_at(&out.theta)?;
     let image = problem.image(&out.theta)?;
     let img32: Vec<f32> = image.iter().map(|&v| v as f32).collect();
@@ -125,7 +201,7 @@ pub fn run(
     let meta = serde_json::json!({
         "view": problem.view(),
         "depth": cfg.depth,
-        "sigma": cfg.sigma,
+        "sigma": problem.sigma(),
         "loss": out.loss,
         "iterations": out.iterations,
     });
@@ -140,6 +216,19 @@ pub fn run(
     let pm: Vec<bool> = image.iter().map(|&v| v >= INK).collect();
     let tm: Vec<bool> = ink.iter().map(|&v| v >= INK).collect();
     let iou = ifslab::metrics::iou(&pm, &tm)?;
+    let truth_iou = match &cfg.truth {
+        Some(spec) => {
+            let truth = resolve_pattern(spec).with_context(|| format!("`truth` {spec}"))?;
+            Some(pattern_iou(
+                &truth,
+                &fitted,
+                TRUTH_SIZE,
+                cfg.depth,
+                TRUTH_SIGMA,
+            )?)
+        }
+        None => None,
+    };
     // Only this process's iterations were timed.
     let fresh = out.iterations.saturating_sub(done_before).max(1);
     let summary = SdfSummary {
@@ -148,9 +237,11 @@ pub fn run(
         iterations: out.iterations,
         seconds,
         seconds_per_iteration: out.seconds / fresh as f64,
+        sigma: problem.sigma(),
         loss: out.loss,
         mse,
         iou,
+        truth_iou,
         returned: out.returned.to_owned(),
         points: fitted.points().to_vec(),
     };

@@ -324,6 +324,16 @@ pub fn run_id(resolved: &toml::Table, sweep_dir: &Path) -> String {
     for k in OPERATIONAL_KEYS {
         t.remove(*k);
     }
+    // A recipe only fills in the keys a config leaves out, and the resolved table spells
+    // them out: the `paper` key adds nothing to what such a run computes (and runs made
+    // before recipes existed keep their ids).
+    let problem = t
+        .get(crate::runs::config::PROBLEM_KEY)
+        .and_then(toml::Value::as_str)
+        .unwrap_or(crate::runs::config::DEFAULT_PROBLEM);
+    if RunConfig::HAS_RECIPES.contains(&problem) {
+        t.remove(ifslab_strategies::recipe::PAPER_KEY);
+    }
     let mut prefix = sweep_dir.to_string_lossy().into_owned();
     if !prefix.ends_with('/') {
         prefix.push('/');

@@ -385,7 +385,7 @@ pub fn adopt(plan: &Plan, out: &Path, from: &Path) -> anyhow::Result<Adopted> {
             ));
             continue;
         }
-        let id = match crate::runs::RunConfig::load(&cfg_path).and_then(|c| c.to_table()) {
+        let id = match crate::runs::RunConfig::load_resolved(&cfg_path).and_then(|c| c.to_table()) {
             Ok(t) => super::expand::run_id(&t, sweep_dir),
             Err(e) => {
                 result.unmatched.push((d, format!("{e:#}")));

@@ -88,6 +88,17 @@ pub fn load_data(cfg: &PointsConfig) -> anyhow::Result<Data> {
             PointSet::load(&cfg.data).with_context(|| format!("`data`: reading {}", cfg.data))?;
         (p, cfg.data.clone())
     };
+    let (all, source) = if cfg.trim_outliers() {
+        let (kept, removed) = all.without_outliers(8, 4.0, 0.05);
+        let source = if removed > 0 {
+            format!("{source}; {removed} isolated point(s) left out")
+        } else {
+            source
+        };
+        (kept, source)
+    } else {
+        (all, source)
+    };
     let (train, test) = all.split(cfg.heldout, cfg.seed)?;
     if train.len() < cfg.k {
         bail!(
@@ -122,8 +133,15 @@ pub struct BestFit {
     pub mean_depth: f64,
     /// Free parameters of the IFS model.
     pub parameters: usize,
+    /// v_D, the weight of the deepest level (the paper's convergence criterion compares it
+    /// with a threshold).
+    #[serde(default)]
+    pub deepest_weight: Option<f64>,
     /// Coverage agreement with `truth`, when one was given.
     pub truth_agreement: Option<f64>,
+    /// Plain IoU of the coverage masks compared with `truth` (no tolerance).
+    #[serde(default)]
+    pub truth_iou: Option<f64>,
     /// The best Gaussian mixture's held-out log-likelihood among the baselines.
     pub best_gmm_heldout_log_likelihood: Option<f64>,
     /// Each Gaussian-mixture baseline's held-out log-likelihood, by covariance and
@@ -221,13 +239,13 @@ pub fn run(
     let resolved = cfg.resolved()?;
     let config_path = dir.join(CONFIG_FILE);
     if resume {
-        let stored = std::fs::read_to_string(&config_path).with_context(|| {
-            format!(
-                "{} holds no points run to resume (no {CONFIG_FILE})",
-                dir.display()
-            )
-        })?;
-        let RunConfig::Points(stored) = RunConfig::from_toml(&stored, &config_path)? else {
+        anyhow::ensure!(
+            config_path.is_file(),
+            "{} holds no points run to resume (no {CONFIG_FILE})",
+            dir.display()
+        );
+        // Read as a resolved config: keys it leaves out when off read as off.
+        let RunConfig::Points(stored) = RunConfig::load_resolved(&config_path)? else {
             bail!(
                 "{} is not the config of a points run",
                 config_path.display()
@@ -348,7 +366,8 @@ fn fit_runs(
         ));
         let repairs = result.degeneracy_counts();
         runs.push(json!({
-            "truth_agreement": against.map(|a| a.agreement), "truth_scale_error": against.map(|a| a.scale_error),
+            "truth_agreement": against.map(|a| a.agreement), "truth_iou": against.map(|a| a.iou),
+            "truth_scale_error": against.map(|a| a.scale_error),
             "run": r, "seed": em.seed, "heldout_log_likelihood": score,
             "train_log_likelihood": train_ll, "converged": result.converged,
             "deepest_weight": result.model.deepest_weight(), "mean_depth": result.model.mean_depth(),
@@ -385,7 +404,9 @@ fn fit_runs(
             converged: result.converged,
             mean_depth: result.model.mean_depth(),
             parameters: result.model.parameter_count(),
+            deepest_weight: Some(result.model.deepest_weight()),
             truth_agreement: against.map(|a| a.agreement),
+            truth_iou: against.map(|a| a.iou),
             best_gmm_heldout_log_likelihood: out.best_gmm,
             gmm: out.gmm,
         }),

@@ -119,6 +119,7 @@ impl EmConfig {
             recentre: false,
             mstep: MStepConfig {
                 update: ComponentUpdate::Outermost,
+                reflections: false,
                 ..MStepConfig::default()
             },
             ..EmConfig::default()

@@ -18,6 +18,8 @@ use std::path::Path;
 
 use rand::seq::SliceRandom;
 
+use rayon::prelude::*;
+
 use crate::error::{Error, Result};
 
 /// N points in R^H, stored row-major (`data[i·H + j]` is coordinate j of point i).
@@ -138,6 +140,69 @@ impl PointSet {
         let test = self.select(&idx[..n_test]);
         let train = self.select(&idx[n_test..]);
         Ok((train, test))
+    }
+
+    /// The points that are not isolated, and how many were left out: a point is an outlier
+    /// when its distance to its `k`-th nearest neighbour (among a fixed, evenly spaced
+    /// subset of at most 4096 reference points, so the cost stays `O(N·4096)`) is more than
+    /// `z` robust standard deviations (and three times) above the median, on a log scale — a
+    /// stray point far
+    /// from an attractor sampled densely, not the attractor's own sparse parts (at most
+    /// `max_share` of the points go, the most isolated first). Deterministic.
+    pub fn without_outliers(&self, k: usize, z: f64, max_share: f64) -> (PointSet, usize) {
+        let n = self.len();
+        if k == 0 || n <= 2 * k + 2 {
+            return (self.clone(), 0);
+        }
+        let reference: Vec<usize> = if n <= 4096 {
+            (0..n).collect()
+        } else {
+            (0..4096).map(|i| i * n / 4096).collect()
+        };
+        let h = self.dim();
+        let logd: Vec<f64> = (0..n)
+            .into_par_iter()
+            .map(|i| {
+                let p = self.point(i);
+                // The k + 1 nearest references, the point itself among them when it is one.
+                let mut best = vec![f64::INFINITY; k + 1];
+                for &j in &reference {
+                    if j == i {
+                        continue;
+                    }
+                    let q = self.point(j);
+                    let d2: f64 = (0..h).map(|c| (p[c] - q[c]) * (p[c] - q[c])).sum();
+                    if d2 < best[k] {
+                        best[k] = d2;
+                        best.sort_by(f64::total_cmp);
+                    }
+                }
+                0.5 * best[k - 1].max(1e-300).ln()
+            })
+            .collect();
+        let mut sorted = logd.clone();
+        sorted.sort_by(f64::total_cmp);
+        let median = sorted[n / 2];
+        let mut dev: Vec<f64> = logd.iter().map(|v| (v - median).abs()).collect();
+        dev.sort_by(f64::total_cmp);
+        let mad = 1.4826 * dev[n / 2];
+        if !mad.is_finite() {
+            return (self.clone(), 0);
+        }
+        // At least three times the median distance: evenly spread points are all kept.
+        let limit = median + (z * mad).max(3f64.ln());
+        let mut order: Vec<usize> = (0..n).filter(|&i| logd[i] > limit).collect();
+        order.sort_by(|&a, &b| logd[b].total_cmp(&logd[a]).then(a.cmp(&b)));
+        order.truncate((max_share * n as f64).floor() as usize);
+        if order.is_empty() {
+            return (self.clone(), 0);
+        }
+        let mut drop = vec![false; n];
+        for &i in &order {
+            drop[i] = true;
+        }
+        let kept: Vec<usize> = (0..n).filter(|&i| !drop[i]).collect();
+        (self.select(&kept), order.len())
     }
 
     /// Per-coordinate mean.
@@ -477,5 +542,28 @@ mod tests {
         let mut all: Vec<f64> = a.as_slice().iter().chain(b.as_slice()).copied().collect();
         all.sort_by(f64::total_cmp);
         assert_eq!(all, (0..100).map(f64::from).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn isolated_points_are_left_out_and_a_clean_cloud_is_kept_whole() {
+        // 2000 points on a circle (dense), 20 scattered far from it (1 %).
+        let mut data = Vec::new();
+        for i in 0..2000 {
+            let a = std::f64::consts::TAU * i as f64 / 2000.0;
+            data.extend_from_slice(&[a.cos(), a.sin()]);
+        }
+        let clean = PointSet::new(2, data.clone()).unwrap();
+        let (kept, removed) = clean.without_outliers(8, 4.0, 0.05);
+        assert_eq!((kept.len(), removed), (2000, 0));
+        for j in 0..20 {
+            let a = 2.399 * j as f64;
+            data.extend_from_slice(&[3.0 * a.cos() + 0.1 * j as f64, 3.0 * a.sin()]);
+        }
+        let noisy = PointSet::new(2, data).unwrap();
+        let (kept, removed) = noisy.without_outliers(8, 4.0, 0.05);
+        assert_eq!(removed, 20);
+        assert!(kept.iter().all(|p| (p[0].hypot(p[1]) - 1.0).abs() < 1e-9));
+        // Never more than the share allowed.
+        assert!(noisy.without_outliers(8, 4.0, 0.005).1 <= 10);
     }
 }

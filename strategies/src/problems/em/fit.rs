@@ -14,7 +14,7 @@ use crate::problems::em::init::{normalising_post, random_model};
 use crate::problems::em::model::EmModel;
 use crate::problems::em::mstep::Degeneracy;
 use crate::problems::em::preselect::{Candidate, preselect};
-use crate::problems::em::reorient::rotation_set;
+use crate::problems::em::reorient::orientation_set;
 use crate::problems::em::train::{IterationRecord, ReorientStep, Schedule, train};
 
 /// What [`fit`] reports while it works.
@@ -94,10 +94,11 @@ pub fn fit(
     check_data(data, heldout, cfg)?;
     let eval = evaluation_points(data, cfg);
     let rotations = if cfg.reorient.enabled() {
-        rotation_set(
+        orientation_set(
             data.dim(),
             cfg.reorient.rotations,
             mix_seed(cfg.seed, stream::ROTATIONS),
+            cfg.mstep.reflections,
         )
     } else {
         Vec::new()

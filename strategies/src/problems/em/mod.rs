@@ -61,7 +61,9 @@ pub use data::PointSet;
 pub use fit::{EmFit, Event, check_data, fit, fit_all};
 pub use gmm::{Covariance, Gmm, GmmConfig};
 pub use model::{CodeTable, EmModel};
-pub use mstep::{ComponentUpdate, Degeneracy, MStepConfig, Part, proper_rotation};
+pub use mstep::{
+    ComponentUpdate, Degeneracy, MStepConfig, Part, nearest_orthogonal, proper_rotation,
+};
 pub use preselect::Candidate;
 pub use reorient::{ReorientConfig, Reorientation};
 pub use train::{IterationRecord, ReorientStep, Schedule, StepInfo, em_step, train};

@@ -385,11 +385,8 @@ impl EmModel {
             .iter()
             .enumerate()
             .map(|(i, m)| {
-                Similitude::from_affine(m, 1e-6).map_err(|e| {
-                    Error::InvalidInput(format!(
-                        "map {i} is not a similitude with a proper rotation: {e}"
-                    ))
-                })
+                Similitude::from_affine(m, 1e-6)
+                    .map_err(|e| Error::InvalidInput(format!("map {i} is not a similitude: {e}")))
             })
             .collect::<Result<Vec<_>>>()?;
         let k = components.len();

@@ -88,6 +88,13 @@ pub struct MStepConfig {
     /// Standard deviation of the translation noise of a re-seeded component, relative to
     /// the scale of the component it copies.
     pub split_noise: f64,
+    /// Let components and the post-transform reflect (orthogonal maps of either
+    /// determinant, `R̂ = U·Vᵀ`) instead of rotating only (the paper's `det R = +1`): an
+    /// attractor whose pieces are mirror images of the whole is then a model, not a
+    /// local optimum to fall into. Serialised only when on, so configs written before it
+    /// existed read as they meant.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub reflections: bool,
     /// Safeguard for full-batch runs: when the new model lowers the batch likelihood (the
     /// component update is not an exact maximisation), fall back to the exact blocks only —
     /// weights, depth weights and post-transform with the old components — which cannot
@@ -103,6 +110,7 @@ impl Default for MStepConfig {
             max_scale: 0.99,
             dead_weight: 1e-4,
             split_noise: 0.1,
+            reflections: true,
             monotone: false,
         }
     }
@@ -329,6 +337,16 @@ pub fn proper_rotation(c: &DMatrix<f64>) -> Option<DMatrix<f64>> {
     Some(&u * DMatrix::from_diagonal(&d) * &vt)
 }
 
+/// The orthogonal matrix R (of either determinant) maximising `tr(Rᵀ·C)`: `U·Vᵀ` from the
+/// SVD of `C` (the polar factor). `None` if the SVD does not converge or `C` is not finite.
+pub fn nearest_orthogonal(c: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+    if !c.is_square() || c.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    let svd = c.clone().try_svd(true, true, 1e-15, 10_000)?;
+    Some(svd.u? * svd.v_t?)
+}
+
 /// The positive root of `n·h·s² + b·s − a = 0` (a ≥ 0), cancellation-free.
 fn scale_root(n: f64, h: f64, a: f64, b: f64) -> f64 {
     let nh = n * h;
@@ -347,6 +365,7 @@ pub fn fit_similitude(
     old_r: &DMatrix<f64>,
     min_scale: f64,
     max_scale: f64,
+    reflections: bool,
 ) -> Option<SimilitudeFit> {
     let h = sums.sy.len();
     if !(sums.omega > 0.0 && sums.count > 0.0) {
@@ -359,7 +378,12 @@ pub fn fit_similitude(
     let cross = &sums.syb - (&ybar * bbar.transpose()) * sums.omega;
     let informative = cross.norm() > 1e-10 * (a * csrc).sqrt() && csrc > 0.0 && a > 0.0;
     let (r, determined) = if informative {
-        match proper_rotation(&cross) {
+        let fitted = if reflections {
+            nearest_orthogonal(&cross)
+        } else {
+            proper_rotation(&cross)
+        };
+        match fitted {
             Some(r) => (r, true),
             None => (old_r.clone(), false),
         }
@@ -501,6 +525,7 @@ pub fn maximise<R: Rng + ?Sized>(
             &model.components[kk].r,
             cfg.min_scale,
             cfg.max_scale,
+            cfg.reflections,
         ) {
             Some(fit) => {
                 if !fit.rotation_determined && depth > 1 {
@@ -627,7 +652,9 @@ fn with_fitted_post(
         );
     }
     let identity = DMatrix::<f64>::identity(h, h);
-    match fit_similitude(&post_sums, &identity, 1e-9, 1e9) {
+    // The whole model frame turns, never mirrors: a mirror image of the data is the
+    // components' to express.
+    match fit_similitude(&post_sums, &identity, 1e-9, 1e9, false) {
         Some(fit) => {
             if !fit.rotation_determined && model.depth() > 0 {
                 notes.push(Degeneracy::RotationUndetermined { part: Part::Post });
@@ -699,7 +726,7 @@ mod tests {
                 let y = truth.apply(&b);
                 sums.add_pair(1.0, y.as_slice(), b.as_slice(), 1e-6);
             }
-            let fit = fit_similitude(&sums, &DMatrix::identity(h, h), 1e-9, 10.0).unwrap();
+            let fit = fit_similitude(&sums, &DMatrix::identity(h, h), 1e-9, 10.0, false).unwrap();
             // With a tiny variance the likelihood optimum is the exact map, up to O(var).
             assert!((fit.sim.s - truth.s).abs() < 1e-4, "h={h} s={}", fit.sim.s);
             assert!((fit.sim.r - &truth.r).amax() < 1e-6);
@@ -721,5 +748,15 @@ mod tests {
                 "{n} {h} {a} {b}: {s} {res}"
             );
         }
+    }
+
+    #[test]
+    fn the_nearest_orthogonal_map_may_reflect_where_a_rotation_may_not() {
+        // C = a mirror (x ↦ −x) scaled: the best rotation is not it, the best orthogonal is.
+        let c = DMatrix::from_row_slice(2, 2, &[-2.0, 0.0, 0.0, 1.5]);
+        let o = nearest_orthogonal(&c).unwrap();
+        assert!((o - DMatrix::from_row_slice(2, 2, &[-1.0, 0.0, 0.0, 1.0])).amax() < 1e-12);
+        let r = proper_rotation(&c).unwrap();
+        assert!((r.determinant() - 1.0).abs() < 1e-12);
     }
 }

@@ -114,6 +114,22 @@ pub fn rotation_set(h: usize, n: usize, seed: u64) -> Vec<DMatrix<f64>> {
     (1..n).map(|_| random_rotation(h, &mut rng)).collect()
 }
 
+/// [`rotation_set`], and with `reflections` every orientation mirrored as well (the
+/// identity's mirror image included): the set a search over orthogonal maps of either
+/// determinant tries.
+pub fn orientation_set(h: usize, n: usize, seed: u64, reflections: bool) -> Vec<DMatrix<f64>> {
+    let turns = rotation_set(h, n, seed);
+    if !reflections || turns.is_empty() {
+        return turns;
+    }
+    let mut flip = DMatrix::<f64>::identity(h, h);
+    flip[(h - 1, h - 1)] = -1.0;
+    let mirrored: Vec<DMatrix<f64>> = std::iter::once(flip.clone())
+        .chain(turns.iter().map(|q| q * &flip))
+        .collect();
+    turns.into_iter().chain(mirrored).collect()
+}
+
 /// `S ∘ Q_c`: the similitude `s` preceded by the rotation `q` about `c`.
 fn turned(s: &Similitude, q: &DMatrix<f64>, c: &DVector<f64>) -> Similitude {
     let shift = c - q * c;
@@ -227,5 +243,22 @@ mod tests {
             assert!((t.apply(&c) - s.apply(&c)).norm() < 1e-12);
             assert!((t.s - s.s).abs() < 1e-15);
         }
+    }
+
+    #[test]
+    fn orientation_sets_with_reflections_hold_the_mirror_images() {
+        let turns = orientation_set(2, 6, 0, false);
+        assert_eq!(turns.len(), 5);
+        assert!(turns.iter().all(|q| (q.determinant() - 1.0).abs() < 1e-12));
+        let both = orientation_set(3, 6, 4, true);
+        // Five turns, the mirror itself, and the five turns mirrored.
+        assert_eq!(both.len(), 11);
+        let mirrored = both.iter().filter(|q| q.determinant() < 0.0).count();
+        assert_eq!(mirrored, 6);
+        for q in &both {
+            let e = (q.transpose() * q - DMatrix::<f64>::identity(3, 3)).amax();
+            assert!(e < 1e-12);
+        }
+        assert!(orientation_set(2, 0, 0, true).is_empty());
     }
 }

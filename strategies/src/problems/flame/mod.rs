@@ -17,6 +17,11 @@ pub mod config;
 pub mod problem;
 pub mod run;
 
-pub use config::{BackgroundConfig, FlameLearnConfig, FlameLoss, LayerSpec, Rates};
+pub use config::{
+    BackgroundConfig, DEFAULT_ADAM_LR, FlameLearnConfig, FlameLoss, LayerSpec, Rates,
+    default_xforms,
+};
 pub use problem::{FLAME_TERMS, FlameProblem};
-pub use run::{FlameOutcome, flame_problem, initial_stack, load_rgb_target, run_flame};
+pub use run::{
+    FlameOutcome, flame_problem, initial_stack, load_rgb_picture, load_rgb_target, run_flame,
+};

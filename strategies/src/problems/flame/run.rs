@@ -40,33 +40,86 @@ pub struct FlameOutcome {
     pub log: PathBuf,
 }
 
-/// An RGB target of `size × size` pixels (three planes, row 0 at the top), resized from any
-/// image the `image` crate reads (stretched to a square, as the authors' code does), and a
-/// note on what was done to it: a grey image is used as RGB with equal channels; an image
-/// with transparency is composited over `background` (the fit's background colour).
+/// Loads an RGB target of `size × size` pixels (the whole picture resized, as the authors
+/// do), transparent pixels composited over `background`; a note says what was done to it.
 pub fn load_rgb_target(
     path: &Path,
     size: usize,
     background: [f64; 3],
 ) -> Result<(Vec<f32>, Option<String>)> {
+    load_rgb_picture(path, size, Some(background), false)
+}
+
+/// Loads an RGB target of `size × size` pixels. Transparent pixels are composited over
+/// `background`, or — `None` — over black or white, whichever stands out more from the
+/// picture's opaque pixels (a white logo on a clear background is learned on black). With
+/// `frame`, the picture is first cut to the box of what differs from its background (the
+/// border's median colour; differences within four robust standard deviations of the
+/// border's own are noise) with a tenth of that box's side as margin, then padded with the
+/// background colour to a square, so that shapes small in a corner or on a wide canvas are
+/// learned at the size of the picture, undistorted. A note says what was done.
+pub fn load_rgb_picture(
+    path: &Path,
+    size: usize,
+    background: Option<[f64; 3]>,
+    frame: bool,
+) -> Result<(Vec<f32>, Option<String>)> {
     let bytes = std::fs::read(path).map_err(|e| Error::file(path, e))?;
     let img = image::load_from_memory(&bytes)
         .map_err(|e| Error::file(path, format!("not a readable image ({e})")))?;
     let colour = img.color();
-    let mut notes = Vec::new();
+    let mut notes: Vec<String> = Vec::new();
     if !colour.has_color() {
-        notes.push("the target is greyscale: learned as RGB with three equal channels");
-    }
-    if colour.has_alpha() {
-        notes.push("the target has an alpha channel: composited over the background colour");
+        notes.push("the target is greyscale: learned as RGB with three equal channels".into());
     }
     let rgba = img.to_rgba32f();
     let (w, h) = rgba.dimensions();
     if w == 0 || h == 0 {
         return Err(Error::file(path, "image has no pixels"));
     }
+    // Composite first, at the picture's own size.
+    let bg = match background {
+        Some(c) => c,
+        None => {
+            let (mut sum, mut n) = (0.0f64, 0.0f64);
+            for p in rgba.pixels() {
+                let a = p.0[3] as f64;
+                sum += a * (0.2126 * p.0[0] + 0.7152 * p.0[1] + 0.0722 * p.0[2]) as f64;
+                n += a;
+            }
+            if n > 0.0 && sum / n > 0.5 {
+                [0.0; 3]
+            } else {
+                [1.0; 3]
+            }
+        }
+    };
+    if colour.has_alpha() {
+        notes.push(format!(
+            "the target has an alpha channel: composited over [{:.2}, {:.2}, {:.2}]",
+            bg[0], bg[1], bg[2]
+        ));
+    }
+    let (w, h) = (w as usize, h as usize);
+    let mut planes = vec![0.0f32; 3 * w * h];
+    for (i, p) in rgba.pixels().enumerate() {
+        let a = p.0[3].clamp(0.0, 1.0);
+        for ch in 0..3 {
+            planes[ch * w * h + i] = (p.0[ch] * a + bg[ch] as f32 * (1.0 - a)).clamp(0.0, 1.0);
+        }
+    }
+    let (mut planes, mut w, mut h) = (planes, w, h);
+    if frame && let Some((framed, fw, fh, what)) = frame_rgb(&planes, w, h) {
+        notes.push(what);
+        (planes, w, h) = (framed, fw, fh);
+    }
+    let buf: image::ImageBuffer<image::Rgb<f32>, Vec<f32>> =
+        image::ImageBuffer::from_fn(w as u32, h as u32, |x, y| {
+            let i = y as usize * w + x as usize;
+            image::Rgb([planes[i], planes[w * h + i], planes[2 * w * h + i]])
+        });
     let resized = image::imageops::resize(
-        &rgba,
+        &buf,
         size as u32,
         size as u32,
         image::imageops::FilterType::Triangle,
@@ -74,10 +127,8 @@ pub fn load_rgb_target(
     let n = size * size;
     let mut out = vec![0.0f32; 3 * n];
     for (i, p) in resized.pixels().enumerate() {
-        let a = p.0[3].clamp(0.0, 1.0);
         for ch in 0..3 {
-            let v = p.0[ch] * a + background[ch] as f32 * (1.0 - a);
-            out[ch * n + i] = v.clamp(0.0, 1.0);
+            out[ch * n + i] = p.0[ch].clamp(0.0, 1.0);
         }
     }
     let note = if notes.is_empty() {
@@ -86,6 +137,77 @@ pub fn load_rgb_target(
         Some(notes.join("; "))
     };
     Ok((out, note))
+}
+
+/// The content of an RGB picture (three `w × h` planes) cut to its box with a margin and
+/// padded to a square with the border's colour (see [`load_rgb_picture`]); `None` when
+/// nothing needs doing (the content already fills a square picture) or nothing stands out.
+fn frame_rgb(planes: &[f32], w: usize, h: usize) -> Option<(Vec<f32>, usize, usize, String)> {
+    let n = w * h;
+    let ring: Vec<usize> = (0..n)
+        .filter(|&i| {
+            let (x, y) = (i % w, i / w);
+            x < 2 || y < 2 || x + 2 >= w || y + 2 >= h
+        })
+        .collect();
+    let median = |mut v: Vec<f32>| -> f32 {
+        let k = v.len() / 2;
+        *v.select_nth_unstable_by(k, f32::total_cmp).1
+    };
+    let border: [f32; 3] =
+        std::array::from_fn(|ch| median(ring.iter().map(|&i| planes[ch * n + i]).collect()));
+    let dist = |i: usize| -> f32 {
+        (0..3)
+            .map(|ch| (planes[ch * n + i] - border[ch]).abs())
+            .fold(0.0, f32::max)
+    };
+    let noise = 1.4826 * median(ring.iter().map(|&i| dist(i)).collect());
+    let level = (4.0 * noise).max(0.08);
+    let (mut x0, mut x1, mut y0, mut y1) = (w, 0, h, 0);
+    for y in 0..h {
+        for x in 0..w {
+            if dist(y * w + x) > level {
+                x0 = x0.min(x);
+                x1 = x1.max(x);
+                y0 = y0.min(y);
+                y1 = y1.max(y);
+            }
+        }
+    }
+    if x0 > x1 {
+        return None;
+    }
+    let side = (x1 - x0 + 1).max(y1 - y0 + 1);
+    let margin = side / 10 + 1;
+    let out_side = side + 2 * margin;
+    if out_side >= w.max(h) && w == h {
+        return None;
+    }
+    let (cx, cy) = ((x0 + x1) as f64 / 2.0, (y0 + y1) as f64 / 2.0);
+    let ox = (cx - (out_side as f64 - 1.0) / 2.0).round() as isize;
+    let oy = (cy - (out_side as f64 - 1.0) / 2.0).round() as isize;
+    let m = out_side * out_side;
+    let mut out = vec![0.0f32; 3 * m];
+    for y in 0..out_side {
+        for x in 0..out_side {
+            let (sx, sy) = (ox + x as isize, oy + y as isize);
+            let inside = sx >= 0 && sy >= 0 && (sx as usize) < w && (sy as usize) < h;
+            for ch in 0..3 {
+                out[ch * m + y * out_side + x] = if inside {
+                    planes[ch * n + sy as usize * w + sx as usize]
+                } else {
+                    border[ch]
+                };
+            }
+        }
+    }
+    let what = format!(
+        "framed: the {}×{} box of what differs from the background, with a margin, padded to \
+         a {out_side}² square",
+        x1 - x0 + 1,
+        y1 - y0 + 1
+    );
+    Some((out, out_side, out_side, what))
 }
 
 /// The start `cfg` describes: each layer drawn in the authors' style from the run's seed.

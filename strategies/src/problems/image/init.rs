@@ -50,19 +50,31 @@ pub fn sample_image_points(image: &[f32], size: usize, n: usize, seed: u64) -> R
 /// An IFS of `k` similitudes fitted by EM (paper settings: depth 6, 300 iterations,
 /// N′ = 500, pool 10) to 4000 points of the target, as affine maps. With many maps the depth
 /// is lowered so that the K^D codes stay near 5000 (K = 10: depth 3).
-pub fn em_initial_maps(target: &[f32], size: usize, k: usize, seed: u64) -> Result<Vec<Affine2>> {
+/// With `reflections`, the similitudes may mirror as well as rotate.
+pub fn em_initial_maps(
+    target: &[f32],
+    size: usize,
+    k: usize,
+    seed: u64,
+    reflections: bool,
+) -> Result<Vec<Affine2>> {
     let points = sample_image_points(target, size, 4000, seed)?;
     let depth = if k <= 4 {
         6
     } else {
         ((5000f64.ln() / (k as f64).ln()).floor() as usize).clamp(2, 6)
     };
+    let base = EmConfig::default();
     let cfg = EmConfig {
         components: k,
         depth,
         preselect_depth: depth.min(3),
         seed,
-        ..EmConfig::default()
+        mstep: crate::problems::em::MStepConfig {
+            reflections,
+            ..base.mstep.clone()
+        },
+        ..base
     };
     let res = fit(&points, None, &cfg, &mut |_| {})?;
     Ok(res
@@ -121,7 +133,9 @@ pub fn initial_theta(
             maps
         }
         None => match cfg.model.init {
-            InitKind::Em => em_initial_maps(target, cfg.target.size, n, seed)?,
+            InitKind::Em => {
+                em_initial_maps(target, cfg.target.size, n, seed, cfg.model.em_reflections)?
+            }
             InitKind::Random if n >= 2 => sample_code(n, seed)?.maps,
             InitKind::Random => vec![Affine2::new(0.5, 0.0, 0.0, 0.5, 0.1, 0.1)],
         },

@@ -226,6 +226,7 @@ mod tests {
         .unwrap()
         .values;
         let cfg = InversionConfig {
+            paper: true,
             seed: 1,
             iterations: 1,
             checkpoint_every: 0,
@@ -235,6 +236,7 @@ mod tests {
                 code: Some("sierpinski".into()),
                 suite: None,
                 index: None,
+                truth: None,
                 size,
                 polarity: Default::default(),
             },

@@ -6,7 +6,6 @@ use std::path::Path;
 
 use ifslab::image::Image;
 use ifslab::render::FIT_FILL;
-use ifslab::render::image_io::load_grey;
 use image::{ImageBuffer, Luma, imageops};
 use serde::{Deserialize, Serialize};
 
@@ -49,28 +48,288 @@ impl std::str::FromStr for Polarity {
     }
 }
 
-/// Pixels above this fraction of the brightest one count as foreground for framing.
-const FOREGROUND: f32 = 0.1;
+/// Width in pixels of the border ring a picture's background is read from.
+const RING: usize = 2;
+/// How far the middle half of the border ring's levels may spread, as a share of the
+/// picture's range, before `auto` gives up: the border is then not a background to tell
+/// the shape from (a photo, a gradient).
+const MAX_RING_SPREAD: f32 = 0.25;
+/// A pixel belongs to the shape when it departs from the background by more than this many
+/// robust standard deviations of the ring (and at least [`MIN_CONTRAST`]).
+const SHAPE_NOISE: f32 = 4.0;
+/// The smallest difference between background and ink levels taken as a shape.
+const MIN_CONTRAST: f32 = 0.03;
+/// Noise (robust standard deviations of the background) left out below the ink.
+const NOISE_FLOOR: f32 = 3.0;
+
+/// What the loader read from a picture and how it framed it: written beside a run's framed
+/// target (`target.json`), so a person sees what was decided and a resumed run reads the
+/// measurements it started with.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TargetReading {
+    /// The picture's width and height in pixels.
+    pub picture: [u32; 2],
+    /// `opacity` (a transparent picture's alpha plane), or the luma taken `as_is` (bright on
+    /// dark) or `inverted` (dark on light).
+    pub read: String,
+    /// The background level of that plane (the border ring's median), before normalising.
+    pub background: f32,
+    /// The ink level (95th percentile of the shape's Otsu class), before normalising.
+    pub ink: f32,
+    /// The background's robust standard deviation (noise), before normalising.
+    pub noise: f32,
+    /// Framed pixels per picture pixel.
+    pub scale: f64,
+    /// The shape's stroke width in picture pixels ([`stroke_width`]), when it has strokes.
+    pub stroke: Option<f64>,
+}
+
+/// The name of [`TargetReading`]'s file in a run folder.
+pub const TARGET_READING_FILE: &str = "target.json";
+
+/// A picture framed as a target, and what was read from it.
+#[derive(Clone, Debug)]
+pub struct FramedTarget {
+    /// `size × size` values in [0, 1], the shape bright.
+    pub values: Vec<f32>,
+    /// What the loader read.
+    pub reading: TargetReading,
+}
+
+impl TargetReading {
+    /// Writes the reading as JSON (atomically).
+    pub fn save(&self, path: &Path) -> Result<()> {
+        let text = serde_json::to_string_pretty(self).map_err(|e| Error::file(path, e))?;
+        ifslab::io::write_atomic(path, text.as_bytes())?;
+        Ok(())
+    }
+
+    /// Reads a reading written by [`TargetReading::save`].
+    pub fn load(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::file(path, e))?;
+        serde_json::from_str(&text).map_err(|e| Error::file(path, e))
+    }
+
+    /// The stroke width in framed pixels.
+    pub fn framed_stroke(&self) -> Option<f64> {
+        self.stroke.map(|w| w * self.scale)
+    }
+}
 
 /// Loads `path` and frames it into a `size × size` target.
 pub fn load_target(path: &Path, size: usize, polarity: Polarity) -> Result<Vec<f32>> {
-    let img = load_grey(path)?;
-    frame_target(&img, size, polarity).map_err(|e| match e {
+    Ok(load_framed_picture(path, size, polarity)?.values)
+}
+
+/// Loads `path` and frames it into a `size × size` target, with what was read from it.
+pub fn load_framed_picture(path: &Path, size: usize, polarity: Polarity) -> Result<FramedTarget> {
+    let img = Image::load_rgba(path)?;
+    frame_picture(&img, size, polarity).map_err(|e| match e {
         Error::InvalidInput(m) => Error::file(path, m),
         other => other,
     })
 }
 
-/// Frames an image (colour images by their luma) into a `size × size` grey target (values
-/// in [0, 1], shape bright).
-pub fn frame_target(img: &Image, size: usize, polarity: Polarity) -> Result<Vec<f32>> {
-    let grey;
-    let img = if img.channels == 1 {
-        img
+/// The stroke width of a shape plane (values in [0, 1], shape bright), in its pixels: the
+/// distance of each half-inked pixel to the nearest pixel that is not, whose 90th
+/// percentile `d` is the middle of the strokes (`W ≈ 2d − 1`, 1 for a one-pixel line).
+/// `None` when no pixel, or every pixel, is half-inked.
+pub fn stroke_width(plane: &[f32], width: usize, height: usize) -> Option<f64> {
+    let outside: Vec<bool> = plane.iter().map(|&v| v < 0.5).collect();
+    let d = ifslab::image::distance_to(&outside, width, height)?;
+    let mut inside: Vec<f64> = d
+        .iter()
+        .zip(&outside)
+        .filter(|(_, o)| !**o)
+        .map(|(d, _)| *d)
+        .collect();
+    if inside.is_empty() {
+        return None;
+    }
+    let k = ((inside.len() - 1) as f64 * 0.9).round() as usize;
+    let d90 = *inside.select_nth_unstable_by(k, f64::total_cmp).1;
+    Some((2.0 * d90 - 1.0).max(1.0))
+}
+
+/// The `q`-quantile (0–1) of `values` (which it reorders).
+fn quantile(values: &mut [f32], q: f64) -> f32 {
+    let k = ((values.len() - 1) as f64 * q).round() as usize;
+    *values.select_nth_unstable_by(k, f32::total_cmp).1
+}
+
+/// The pixels of a `w × h` plane within [`RING`] of its border.
+fn border_ring(v: &[f32], w: usize, h: usize) -> Vec<f32> {
+    let r = RING.min(w / 2).min(h / 2).max(1);
+    let mut out = Vec::with_capacity(2 * r * (w + h));
+    for y in 0..h {
+        for x in 0..w {
+            if x < r || y < r || x + r >= w || y + r >= h {
+                out.push(v[y * w + x]);
+            }
+        }
+    }
+    out
+}
+
+/// The shape of a picture as one plane in [0, 1], bright on a black background, whatever
+/// way it was drawn: a transparent picture's opacity (when its alpha plane holds both
+/// transparent and opaque pixels and no polarity says otherwise); otherwise its luma (alpha
+/// composited onto white). The background is the border ring's median level; the shape is
+/// what departs from it by more than [`SHAPE_NOISE`] robust standard deviations of the
+/// ring, and `auto` turns the picture round when more of that lies below the background
+/// than above (a tiny figure decides it as well as a large one). Then the background goes
+/// to 0, the ink level (the shape's 95th percentile) to 1, and noise up to [`NOISE_FLOOR`]
+/// robust standard deviations is left out — so a faint anti-aliased line, a grey
+/// background, JPEG ringing or sensor noise frame like a clean black-and-white drawing. A
+/// uniform picture, a shape too faint to tell from the noise, and (`auto`) a picture whose
+/// border is not one plain background are refused, saying why.
+pub fn shape_plane(img: &Image, polarity: Polarity) -> Result<(Vec<f32>, TargetReading)> {
+    let (w, h) = (img.width as usize, img.height as usize);
+    let n = w * h;
+    if img.channels == 4 && polarity != Polarity::DarkOnLight {
+        let alpha = img.plane(3);
+        let (lo, hi) = alpha
+            .iter()
+            .fold((1.0f32, 0.0f32), |(l, u), &a| (l.min(a), u.max(a)));
+        if lo < 0.5 && hi > 0.5 {
+            let (v, mut r) = normalise(alpha.to_vec(), w, h, Polarity::BrightOnDark)?;
+            r.read = "opacity".into();
+            return Ok((v, r));
+        }
+    }
+    let grey = if img.channels == 1 {
+        img.values[..n].to_vec()
     } else {
-        grey = img.to_grey();
-        &grey
+        img.to_grey().values
     };
+    normalise(grey, w, h, polarity)
+}
+
+/// Orients (for `auto`, by which side of the background the picture departs to) and
+/// normalises a grey plane.
+fn normalise(
+    grey: Vec<f32>,
+    w: usize,
+    h: usize,
+    polarity: Polarity,
+) -> Result<(Vec<f32>, TargetReading)> {
+    let (lo, hi) = grey
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(l, u), &v| {
+            (l.min(v), u.max(v))
+        });
+    if hi - lo < MIN_CONTRAST {
+        let mean = grey.iter().map(|&v| v as f64).sum::<f64>() / grey.len() as f64;
+        let what = if mean > 0.5 {
+            "all white (or uniformly light)"
+        } else {
+            "all black (or uniformly dark)"
+        };
+        return Err(Error::InvalidInput(format!(
+            "the target is empty: it is {what}, every pixel within {:.3} of the others, so \
+             there is no shape to fit",
+            hi - lo
+        )));
+    }
+    // The background: the border ring's median level and robust spread.
+    let mut ring = border_ring(&grey, w, h);
+    let mut background = quantile(&mut ring, 0.5);
+    let spread = quantile(&mut ring, 0.75) - quantile(&mut ring, 0.25);
+    let plain = spread <= MAX_RING_SPREAD * (hi - lo);
+    if polarity == Polarity::Auto && !plain {
+        return Err(Error::InvalidInput(format!(
+            "the target has no background: its border is not one plain colour (the middle \
+             half of its levels spans {:.0} % of the picture's range); give a picture of a \
+             shape on a plain background, or say which way round it is drawn (`--polarity \
+             bright-on-dark` or `dark-on-light` on the command line, `polarity` in a config)",
+            100.0 * spread / (hi - lo)
+        )));
+    }
+    let mut deviations: Vec<f32> = ring.iter().map(|&x| (x - background).abs()).collect();
+    let mut noise = 1.4826 * quantile(&mut deviations, 0.5);
+    if !plain {
+        // No plain border, but the polarity was given: the background is the picture's
+        // far end on the background's side (its 2nd percentile, turned round when dark on
+        // light), with no noise to leave out.
+        let mut all = grey.clone();
+        background = if polarity == Polarity::DarkOnLight {
+            quantile(&mut all, 0.98)
+        } else {
+            quantile(&mut all, 0.02)
+        };
+        noise = 0.0;
+    }
+    // What departs from the background beyond its noise, on either side: the shape is on
+    // the side with more of it (`auto`).
+    let significant = (SHAPE_NOISE * noise).max(MIN_CONTRAST);
+    let (mut above, mut below) = (0.0f64, 0.0f64);
+    for &x in &grey {
+        let d = x - background;
+        if d > significant {
+            above += d as f64;
+        } else if d < -significant {
+            below -= d as f64;
+        }
+    }
+    let invert = match polarity {
+        Polarity::Auto => below > above,
+        Polarity::BrightOnDark => false,
+        Polarity::DarkOnLight => true,
+    };
+    let o: Vec<f32> = grey
+        .iter()
+        .map(|&x| {
+            if invert {
+                background - x
+            } else {
+                x - background
+            }
+        })
+        .collect();
+    let mut shape: Vec<f32> = o.iter().copied().filter(|&x| x > significant).collect();
+    if shape.is_empty() {
+        return Err(Error::InvalidInput(format!(
+            "the target's shape is too faint: nothing departs from its background {background:.3} \
+             by more than {significant:.3}{}",
+            if polarity == Polarity::Auto {
+                ""
+            } else {
+                " on the side `polarity` says (is it the other way round?)"
+            }
+        )));
+    }
+    let ink = quantile(&mut shape, 0.95);
+    let floor = (NOISE_FLOOR * noise).min(0.5 * ink);
+    let scale = 1.0 / (ink - floor);
+    let plane = o
+        .iter()
+        .map(|&x| ((x - floor) * scale).clamp(0.0, 1.0))
+        .collect();
+    let reading = TargetReading {
+        picture: [w as u32, h as u32],
+        read: if invert { "inverted" } else { "as_is" }.into(),
+        background,
+        ink: if invert {
+            background - ink
+        } else {
+            background + ink
+        },
+        noise,
+        scale: 1.0,
+        stroke: None,
+    };
+    Ok((plane, reading))
+}
+
+/// Frames an image (colour images by their luma, transparent ones by their opacity: see
+/// [`shape_plane`]) into a `size × size` grey target (values in [0, 1], shape bright).
+pub fn frame_target(img: &Image, size: usize, polarity: Polarity) -> Result<Vec<f32>> {
+    Ok(frame_picture(img, size, polarity)?.values)
+}
+
+/// [`frame_target`], with what was read from the picture: its polarity, levels, noise, the
+/// framing's scale and the shape's stroke width.
+pub fn frame_picture(img: &Image, size: usize, polarity: Polarity) -> Result<FramedTarget> {
     if size < 8 {
         return Err(Error::param(
             "size",
@@ -78,60 +337,38 @@ pub fn frame_target(img: &Image, size: usize, polarity: Polarity) -> Result<Vec<
         ));
     }
     let (w, h) = (img.width as usize, img.height as usize);
-    let border_mean = {
-        let mut s = 0.0f64;
-        let mut n = 0usize;
+    let (v, mut reading) = shape_plane(img, polarity)?;
+    // The shape's box: pixels at least half-inked with an inked neighbour (a lone speck of
+    // noise does not stretch it); failing those, any pixel a fifth inked.
+    let lit = |x: usize, y: usize, level: f32| v[y * w + x] > level;
+    let boxed = |level: f32, neighbour: bool| {
+        let (mut x0, mut x1, mut y0, mut y1) = (w, 0, h, 0);
         for y in 0..h {
             for x in 0..w {
-                if x < 2 || y < 2 || x + 2 >= w || y + 2 >= h {
-                    s += img.values[y * w + x] as f64;
-                    n += 1;
+                if !lit(x, y, level) {
+                    continue;
+                }
+                let keep = !neighbour
+                    || (y.saturating_sub(1)..(y + 2).min(h)).any(|yy| {
+                        (x.saturating_sub(1)..(x + 2).min(w))
+                            .any(|xx| (xx, yy) != (x, y) && lit(xx, yy, level))
+                    });
+                if keep {
+                    x0 = x0.min(x);
+                    x1 = x1.max(x);
+                    y0 = y0.min(y);
+                    y1 = y1.max(y);
                 }
             }
         }
-        s / n.max(1) as f64
+        (x0 <= x1).then_some((x0, x1, y0, y1))
     };
-    let invert = match polarity {
-        Polarity::Auto => border_mean > 0.5,
-        Polarity::BrightOnDark => false,
-        Polarity::DarkOnLight => true,
-    };
-    let v: Vec<f32> = img
-        .values
-        .iter()
-        .map(|&x| if invert { 1.0 - x } else { x })
-        .collect();
-    let max = v.iter().copied().fold(0.0f32, f32::max);
-    if max < 0.05 {
-        let what = if invert {
-            "all white (or uniformly light)"
-        } else {
-            "all black (or uniformly dark)"
-        };
-        return Err(Error::InvalidInput(format!(
-            "the target is empty: it is {what}, so there is no shape to fit"
-        )));
-    }
-    let (mut x0, mut x1, mut y0, mut y1) = (w, 0, h, 0);
-    for y in 0..h {
-        for x in 0..w {
-            if v[y * w + x] > FOREGROUND * max {
-                x0 = x0.min(x);
-                x1 = x1.max(x);
-                y0 = y0.min(y);
-                y1 = y1.max(y);
-            }
-        }
-    }
-    let (bw, bh) = (x1 - x0 + 1, y1 - y0 + 1);
-    if bw * bh == w * h && polarity == Polarity::Auto && border_mean > 0.05 && border_mean < 0.95 {
+    let Some((x0, x1, y0, y1)) = boxed(0.5, true).or_else(|| boxed(0.2, false)) else {
         return Err(Error::InvalidInput(
-            "the target has no background: its shape touches every border; give a picture of \
-             a shape on a plain background, or say which way round it is drawn (`--polarity \
-             bright-on-dark` or `dark-on-light` on the command line, `polarity` in a config)"
-                .into(),
+            "the target has no pixel inked above a fifth of its ink level: nothing to fit".into(),
         ));
-    }
+    };
+    let (bw, bh) = (x1 - x0 + 1, y1 - y0 + 1);
     let crop: ImageBuffer<Luma<f32>, Vec<f32>> =
         ImageBuffer::from_fn(bw as u32, bh as u32, |x, y| {
             Luma([v[(y0 + y as usize) * w + x0 + x as usize]])
@@ -147,7 +384,12 @@ pub fn frame_target(img: &Image, size: usize, polarity: Polarity) -> Result<Vec<
     for (x, y, p) in resized.enumerate_pixels() {
         out[(oy + y as usize) * size + ox + x as usize] = p.0[0].clamp(0.0, 1.0);
     }
-    Ok(out)
+    reading.scale = scale;
+    reading.stroke = stroke_width(&v, w, h);
+    Ok(FramedTarget {
+        values: out,
+        reading,
+    })
 }
 
 /// Writes a framed `size × size` target atomically as a lossless `.npy` array.
@@ -267,5 +509,119 @@ mod tests {
         assert_eq!("auto".parse::<Polarity>().unwrap(), Polarity::Auto);
         let e = "sideways".parse::<Polarity>().unwrap_err().to_string();
         assert!(e.contains("sideways") && e.contains("dark-on-light"), "{e}");
+    }
+
+    /// The box of the pixels above `level` in a framed `size²` target.
+    fn lit_box(t: &[f32], size: usize, level: f32) -> (usize, usize, usize, usize) {
+        let lit: Vec<(usize, usize)> = (0..size * size)
+            .filter(|&i| t[i] > level)
+            .map(|i| (i % size, i / size))
+            .collect();
+        assert!(!lit.is_empty(), "nothing above {level}");
+        let (xs, ys): (Vec<_>, Vec<_>) = lit.iter().copied().unzip();
+        (
+            *xs.iter().min().unwrap(),
+            *xs.iter().max().unwrap(),
+            *ys.iter().min().unwrap(),
+            *ys.iter().max().unwrap(),
+        )
+    }
+
+    /// A deterministic stand-in for sensor noise: uniform in ±`amp`, by a hash of (x, y).
+    fn noise(x: u32, y: u32, amp: f32) -> f32 {
+        let mut h = (x as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (y as u64 + 7);
+        h ^= h >> 29;
+        h = h.wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        h ^= h >> 32;
+        amp * (2.0 * (h % 10_000) as f32 / 10_000.0 - 1.0)
+    }
+
+    #[test]
+    fn a_thin_faint_curve_on_a_noisy_grey_background_is_framed_by_the_curve() {
+        // A sine curve one pixel wide drawn at 0.35 over a 0.2 grey background with ±0.05
+        // noise, in the left third of a 300×200 canvas: the noise covers the whole canvas
+        // above a tenth of the brightest pixel, the curve does not.
+        let img = image(300, 200, |x, y| {
+            let on = (20..100).contains(&x)
+                && (y as f32 - (100.0 + 30.0 * (x as f32 / 9.0).sin())).abs() < 0.5;
+            0.2 + if on { 0.35 } else { 0.0 } + noise(x, y, 0.05)
+        });
+        let t = frame_target(&img, 64, Polarity::Auto).unwrap();
+        // The curve spans 80 × ~61 pixels: its longer side fills 75 % of the frame.
+        let (x0, x1, y0, y1) = lit_box(&t, 64, 0.3);
+        assert!((x1 - x0 + 1).abs_diff(48) <= 2, "width {}", x1 - x0 + 1);
+        assert!(
+            (x0 + x1).abs_diff(63) <= 2 && (y0 + y1).abs_diff(63) <= 2,
+            "not centred"
+        );
+        // The background is black: the noise was left below the ink.
+        let dark = t.iter().filter(|&&v| v == 0.0).count();
+        assert!(dark > 64 * 64 * 3 / 4, "{dark} of {} pixels black", 64 * 64);
+        // The curve stands out at the framed size, and reaches full ink at its own.
+        assert!(t.iter().copied().fold(0.0f32, f32::max) > 0.5);
+        let (plane, reading) = shape_plane(&img, Polarity::Auto).unwrap();
+        assert_eq!(plane.iter().copied().fold(0.0f32, f32::max), 1.0);
+        assert_eq!(reading.read, "as_is");
+        assert!((reading.background - 0.2).abs() < 0.01, "{reading:?}");
+        assert!(reading.noise > 0.02 && reading.noise < 0.05, "{reading:?}");
+    }
+
+    #[test]
+    fn polarity_follows_the_background_whatever_its_grey_and_noise() {
+        // A dark disc on a light grey (0.7) background with ±0.1 noise (JPEG-like speckle
+        // around it): `auto` turns it round; the same on a dark background does not.
+        let disc = |x: u32, y: u32| (x as f32 - 40.0).hypot(y as f32 - 30.0) < 12.0;
+        let light = image(90, 70, |x, y| {
+            (if disc(x, y) { 0.15 } else { 0.7 } + noise(x, y, 0.1)).clamp(0.0, 1.0)
+        });
+        let dark = image(90, 70, |x, y| {
+            (if disc(x, y) { 0.8 } else { 0.25 } + noise(x, y, 0.1)).clamp(0.0, 1.0)
+        });
+        for img in [light, dark] {
+            let t = frame_target(&img, 32, Polarity::Auto).unwrap();
+            // The disc is the bright, centred shape.
+            assert!(t[16 * 32 + 16] > 0.6, "centre {}", t[16 * 32 + 16]);
+            assert!(t[2 * 32 + 2] < 0.1, "corner {}", t[2 * 32 + 2]);
+        }
+    }
+
+    #[test]
+    fn a_transparent_picture_is_its_opacity_even_white_on_clear() {
+        // A white square on a transparent background (white underneath): composited onto
+        // white it vanishes; its alpha plane is the shape.
+        let (w, h) = (50u32, 40u32);
+        let inside = |x: u32, y: u32| (10..25).contains(&x) && (5..20).contains(&y);
+        let mut values = vec![1.0f32; 3 * (w * h) as usize];
+        values.extend(
+            (0..h)
+                .flat_map(|y| (0..w).map(move |x| (x, y)))
+                .map(|(x, y)| if inside(x, y) { 1.0 } else { 0.0 }),
+        );
+        let img = Image::new(w, h, 4, values).unwrap();
+        let t = frame_target(&img, 32, Polarity::Auto).unwrap();
+        let (x0, x1, y0, y1) = lit_box(&t, 32, 0.5);
+        assert_eq!((x1 - x0 + 1, y1 - y0 + 1), (24, 24), "a 75 % square");
+        // Said to be dark on light, the picture is read by its colours instead: white on
+        // white has nothing to show.
+        let e = frame_target(&img, 32, Polarity::DarkOnLight)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("empty"), "{e}");
+    }
+
+    #[test]
+    fn a_shape_too_faint_to_tell_from_its_noise_is_refused_saying_why() {
+        // Contrast 0.02 on a uniform background: below the smallest contrast taken.
+        let faint = image(40, 40, |x, y| {
+            0.5 + if (10..30).contains(&x) && (10..30).contains(&y) {
+                0.025
+            } else {
+                0.0
+            }
+        });
+        let e = frame_target(&faint, 32, Polarity::Auto)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("empty") && e.contains("no shape"), "{e}");
     }
 }

@@ -38,6 +38,10 @@ impl Default for SdfInitConfig {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SdfConfig {
+    /// The recipe the keys a config leaves out come from: ifslab's (false, the default) or
+    /// Scott's paper's (true); see [`SdfConfig::preset`].
+    #[serde(default)]
+    pub paper: bool,
     /// The target image (relative to the config file's folder).
     pub target: PathBuf,
     /// A built-in pattern (`koch`, `carpet`, `carpet-square`) or a pattern file.
@@ -51,6 +55,12 @@ pub struct SdfConfig {
     /// Width σ of the drawn figure, in pixels (`exp(−d²/σ²)`).
     #[serde(default = "default_sigma")]
     pub sigma: f64,
+    /// Draw the figure as wide as the target's strokes instead of `sigma`, for patterns
+    /// whose base figure is a segment (filled base figures keep `sigma`): σ from the stroke
+    /// width measured on the picture, in its own pixels, times the framing's scale
+    /// ([`crate::problems::sdf::sigma_for_stroke`]).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub stroke_sigma: bool,
     /// Coarse to fine: σ at the first iteration, shrinking geometrically to `sigma` at the
     /// last (absent: `sigma` throughout, as the paper).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -87,6 +97,11 @@ pub struct SdfConfig {
     /// [`crate::problems::sdf::learned`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub learned: Option<LearnedConfig>,
+    /// The pattern that drew the target, when it is known (a pattern file or built-in
+    /// name): the fit is then also scored against it, both drawn alike, each framed in its
+    /// own box (summary `truth_iou`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub truth: Option<String>,
 }
 
 fn default_size() -> usize {
@@ -104,6 +119,8 @@ fn default_iterations() -> u64 {
 fn default_checkpoint_every() -> u64 {
     25
 }
+/// ifslab's side of the framed target (`size`), in pixels.
+pub const DEFAULT_SIZE: usize = 192;
 /// Adam with a learning rate for points in the unit square.
 pub fn default_strategy() -> StrategyConfig {
     StrategyConfig::new(&AdamConfig {
@@ -113,14 +130,27 @@ pub fn default_strategy() -> StrategyConfig {
 }
 
 impl SdfConfig {
-    /// A config with every default, for `target` and `pattern`.
+    /// A config of ifslab's recipe (the default) for `target` and `pattern`: what a config
+    /// naming only those two keys resolves to.
     pub fn new(target: impl Into<PathBuf>, pattern: impl Into<String>) -> Self {
+        let mut cfg = SdfConfig::paper(target, pattern);
+        cfg.paper = false;
+        cfg.init.kind = SdfInit::Best;
+        cfg.stroke_sigma = true;
+        cfg.size = DEFAULT_SIZE;
+        cfg
+    }
+
+    /// A config of Scott's recipe (`paper = true`) for `target` and `pattern`.
+    pub fn paper(target: impl Into<PathBuf>, pattern: impl Into<String>) -> Self {
         SdfConfig {
+            paper: true,
             target: target.into(),
             pattern: pattern.into(),
             size: default_size(),
             depth: default_depth(),
             sigma: default_sigma(),
+            stroke_sigma: false,
             sigma_start: None,
             sigma_iterations: None,
             iterations: default_iterations(),
@@ -132,14 +162,50 @@ impl SdfConfig {
             init: SdfInitConfig::default(),
             strategy: default_strategy(),
             learned: None,
+            truth: None,
         }
     }
 
-    /// Parses and validates TOML text; `origin` names it in errors.
-    pub fn from_toml(text: &str, origin: &Path) -> Result<Self> {
-        let cfg: SdfConfig = toml::from_str(text).map_err(|e| Error::file(origin, e))?;
+    /// The values of the keys whose defaults depend on the recipe, for a config `table`
+    /// that asks for the paper's recipe (`paper`) or not; merged where the table leaves a
+    /// key out ([`crate::recipe`]). Measured on the robustness suite's tuning split
+    /// (`robustness/README.md`).
+    ///
+    /// | key | ifslab's (default) | the paper's (`paper = true`) |
+    /// |---|---|---|
+    /// | `init.kind` | `best` (the best of five starts after a few coarse steps) | `line` |
+    /// | `stroke_sigma` | true (σ as wide as the picture's strokes) | false (`sigma`) |
+    /// | `size` | 192 | 128 |
+    pub fn preset(paper: bool, _table: &toml::Table) -> toml::Table {
+        use crate::recipe::table_of;
+        if paper {
+            return toml::Table::new();
+        }
+        table_of([
+            ("init.kind", SdfInit::Best.name().into()),
+            ("stroke_sigma", true.into()),
+            ("size", (DEFAULT_SIZE as i64).into()),
+        ])
+    }
+
+    /// A config from a parsed TOML table: the recipe's values merged where the table
+    /// leaves keys out ([`SdfConfig::preset`]), then parsed and validated.
+    pub fn from_table(mut table: toml::Table, origin: &Path) -> Result<Self> {
+        let paper = crate::recipe::paper_flag(&table).map_err(|e| Error::file(origin, e))?;
+        let preset = SdfConfig::preset(paper, &table);
+        crate::recipe::fill_absent(&mut table, preset);
+        let cfg: SdfConfig = toml::Value::Table(table)
+            .try_into()
+            .map_err(|e| Error::file(origin, e))?;
         cfg.validate()?;
         Ok(cfg)
+    }
+
+    /// Parses and validates TOML text (see [`SdfConfig::from_table`]); `origin` names it in
+    /// errors.
+    pub fn from_toml(text: &str, origin: &Path) -> Result<Self> {
+        let table: toml::Table = text.parse().map_err(|e| Error::file(origin, e))?;
+        SdfConfig::from_table(table, origin)
     }
 
     /// TOML text of the resolved configuration.
@@ -152,8 +218,10 @@ impl SdfConfig {
         if self.target.is_relative() {
             self.target = dir.join(&self.target);
         }
-        if dir.join(&self.pattern).is_file() {
-            self.pattern = dir.join(&self.pattern).to_string_lossy().into_owned();
+        for spec in std::iter::once(&mut self.pattern).chain(self.truth.as_mut()) {
+            if dir.join(&*spec).is_file() {
+                *spec = dir.join(&*spec).to_string_lossy().into_owned();
+            }
         }
         self
     }
@@ -167,6 +235,11 @@ impl SdfConfig {
             cfg.pattern = abs(Path::new(&self.pattern))?
                 .to_string_lossy()
                 .into_owned();
+        }
+        if let Some(t) = &self.truth
+            && Path::new(t).is_file()
+        {
+            cfg.truth = Some(abs(Path::new(t))?.to_string_lossy().into_owned());
         }
         if let Some(out) = &self.output {
             cfg.output = Some(abs(out)?);
@@ -246,5 +319,44 @@ impl SdfConfig {
             ));
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MINIMAL: &str = "target = \"t.png\"\npattern = \"koch\"\n";
+
+    #[test]
+    fn the_default_recipe_starts_best_at_the_strokes_width_and_the_papers_is_one_key_away() {
+        let ours = SdfConfig::from_toml(MINIMAL, Path::new("c.toml")).unwrap();
+        assert_eq!(ours, SdfConfig::new("t.png", "koch"));
+        assert_eq!(ours.init.kind, SdfInit::Best);
+        assert!(ours.stroke_sigma && ours.size == DEFAULT_SIZE);
+        assert_eq!((ours.sigma_start, ours.sigma_iterations), (None, None));
+        let paper =
+            SdfConfig::from_toml(&format!("paper = true\n{MINIMAL}"), Path::new("c.toml")).unwrap();
+        assert_eq!(paper, SdfConfig::paper("t.png", "koch"));
+        assert_eq!(paper.init.kind, SdfInit::Line);
+        assert!(!paper.stroke_sigma && paper.size == 128);
+        for cfg in [ours, paper] {
+            let back = SdfConfig::from_toml(&cfg.to_toml(), Path::new("c.toml")).unwrap();
+            assert_eq!(back, cfg);
+        }
+        // The paper's recipe writes nothing it did not write before recipes existed.
+        let text = SdfConfig::paper("t.png", "koch").to_toml();
+        assert!(
+            !text.contains("stroke_sigma") && !text.contains("truth"),
+            "{text}"
+        );
+        // Keys given win: a coarse-to-fine schedule over the default start.
+        let given = SdfConfig::from_toml(
+            &format!("{MINIMAL}sigma_start = 3.0\nsize = 96\n"),
+            Path::new("c"),
+        )
+        .unwrap();
+        assert_eq!((given.sigma_start, given.size), (Some(3.0), 96));
+        assert_eq!(given.init.kind, SdfInit::Best);
     }
 }

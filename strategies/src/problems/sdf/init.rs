@@ -15,7 +15,7 @@ use rand_xoshiro::Xoshiro256PlusPlus;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
-use crate::problems::sdf::target::best_fit_line;
+use crate::problems::sdf::target::{INK, best_fit_line};
 
 /// How the control points start.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -28,6 +28,117 @@ pub enum SdfInit {
     Pattern,
     /// The pattern's points as they are (a pattern file written in the target's frame).
     Given,
+    /// The best of several starts ([`candidate_starts`]: the line, the pattern on the line
+    /// either way up, the pattern in the ink's box either way up), each followed for a few
+    /// coarse steps; the one whose loss is lowest after them starts the fit.
+    Best,
+}
+
+impl SdfInit {
+    /// Its name in configs.
+    pub fn name(&self) -> &'static str {
+        match self {
+            SdfInit::Line => "line",
+            SdfInit::Pattern => "pattern",
+            SdfInit::Given => "given",
+            SdfInit::Best => "best",
+        }
+    }
+}
+
+/// The starts [`SdfInit::Best`] chooses from, by name: `line` (the paper's), `pattern` (its
+/// own shape with its base on the best-fit line), `pattern_flipped` (the same mirrored across
+/// the line: a bump the other way), `box` (the pattern's bounding box fitted into the ink's)
+/// and `box_flipped` (mirrored left to right). Starts the pattern cannot take (a map that
+/// stops contracting) are left out.
+pub fn candidate_starts(
+    pattern: &Pattern,
+    ink: &[f64],
+    view: &SdfView,
+) -> Result<Vec<(&'static str, Vec<f64>)>> {
+    let mut out = Vec::new();
+    let mut push = |name: &'static str, theta: Vec<f64>| {
+        if pattern.with_flat_points(&theta).is_ok() {
+            out.push((name, theta));
+        }
+    };
+    push(
+        "line",
+        initial_points(pattern, ink, view, SdfInit::Line, 0.0, 0)?,
+    );
+    let on_line = initial_points(pattern, ink, view, SdfInit::Pattern, 0.0, 0)?;
+    let [l0, l1] = best_fit_line(ink, view)?;
+    push("pattern_flipped", mirror_across(&on_line, l0, l1));
+    push("pattern", on_line);
+    // The ink's box and the pattern's, centre to centre, the pattern scaled to fit.
+    let (lo, hi) = ink_box(ink, view)?;
+    let pts = pattern.points();
+    let (plo, phi) = pts
+        .iter()
+        .fold(([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]), |(l, h), p| {
+            (
+                [l[0].min(p[0]), l[1].min(p[1])],
+                [h[0].max(p[0]), h[1].max(p[1])],
+            )
+        });
+    let scale = ((hi[0] - lo[0]) / (phi[0] - plo[0]).max(1e-12))
+        .min((hi[1] - lo[1]) / (phi[1] - plo[1]).max(1e-12));
+    if scale.is_finite() && scale > 0.0 {
+        let (c, pc) = (
+            [0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])],
+            [0.5 * (plo[0] + phi[0]), 0.5 * (plo[1] + phi[1])],
+        );
+        for (name, flip) in [("box", 1.0), ("box_flipped", -1.0)] {
+            push(
+                name,
+                pts.iter()
+                    .flat_map(|p| {
+                        [
+                            c[0] + flip * scale * (p[0] - pc[0]),
+                            c[1] + scale * (p[1] - pc[1]),
+                        ]
+                    })
+                    .collect(),
+            );
+        }
+    }
+    Ok(out)
+}
+
+/// Flat points mirrored across the line through `a` and `b`.
+fn mirror_across(theta: &[f64], a: [f64; 2], b: [f64; 2]) -> Vec<f64> {
+    let d = [b[0] - a[0], b[1] - a[1]];
+    let n2 = (d[0] * d[0] + d[1] * d[1]).max(1e-300);
+    theta
+        .chunks_exact(2)
+        .flat_map(|p| {
+            let v = [p[0] - a[0], p[1] - a[1]];
+            let t = (v[0] * d[0] + v[1] * d[1]) / n2;
+            let foot = [a[0] + t * d[0], a[1] + t * d[1]];
+            [2.0 * foot[0] - p[0], 2.0 * foot[1] - p[1]]
+        })
+        .collect()
+}
+
+/// The box of the pixel centres with ink ≥ [`INK`], in the plane of `view`.
+fn ink_box(ink: &[f64], view: &SdfView) -> Result<([f64; 2], [f64; 2])> {
+    let mut lo = [f64::INFINITY; 2];
+    let mut hi = [f64::NEG_INFINITY; 2];
+    for i in 0..view.height {
+        for j in 0..view.width {
+            if ink[i * view.width + j] >= INK {
+                let c = view.centre(i, j);
+                lo = [lo[0].min(c[0]), lo[1].min(c[1])];
+                hi = [hi[0].max(c[0]), hi[1].max(c[1])];
+            }
+        }
+    }
+    if lo[0] > hi[0] {
+        return Err(Error::InvalidInput(format!(
+            "the target has no pixel with ink ≥ {INK}"
+        )));
+    }
+    Ok((lo, hi))
 }
 
 /// The starting θ (flat control points) for `pattern` on target `ink` seen through `view`,
@@ -44,6 +155,13 @@ pub fn initial_points(
     let [a, b] = pattern.base_points();
     let mut theta: Vec<f64> = match init {
         SdfInit::Given => pattern.flat_points(),
+        SdfInit::Best => {
+            return Err(Error::InvalidInput(
+                "the best of several starts is chosen by the fit (`run_sdf`), which follows \
+                 each for a few steps"
+                    .into(),
+            ));
+        }
         SdfInit::Line | SdfInit::Pattern => {
             let [l0, l1] = best_fit_line(ink, view)?;
             let e = [b[0] - a[0], b[1] - a[1]];

@@ -11,8 +11,10 @@ use ifslab::render::sdf::SdfView;
 use crate::driver::{GradState, RunPlan, START_FILE};
 use crate::error::{Error, Result};
 use crate::problems::sdf::config::SdfConfig;
-use crate::problems::sdf::init::initial_points;
+use crate::problems::sdf::init::{SdfInit, candidate_starts, initial_points};
 use crate::problems::sdf::problem::{SDF_TERMS, SdfProblem};
+use crate::problems::sdf::target::sigma_for_stroke;
+use ifslab::model::segment::PrimitiveKind;
 
 /// What a fit produced.
 #[derive(Clone, Debug)]
@@ -34,14 +36,21 @@ pub struct SdfOutcome {
     pub log: PathBuf,
 }
 
-/// The problem `cfg` describes for `target` (ink, `size × size`, seen as the unit square).
-pub fn sdf_problem(cfg: &SdfConfig, target: Vec<f64>) -> Result<SdfProblem> {
+/// The problem `cfg` describes for `target` (ink, `size × size`, seen as the unit square)
+/// whose strokes are `stroke` framed pixels wide, when that was measured (it sets σ with
+/// `stroke_sigma`).
+pub fn sdf_problem(cfg: &SdfConfig, target: Vec<f64>, stroke: Option<f64>) -> Result<SdfProblem> {
+    let pattern = cfg.pattern()?;
+    let sigma = match (cfg.stroke_sigma, stroke) {
+        (true, Some(w)) if pattern.base().kind == PrimitiveKind::Segment => sigma_for_stroke(w),
+        _ => cfg.sigma,
+    };
     let p = SdfProblem::new(
-        cfg.pattern()?,
+        pattern,
         target,
         SdfView::unit_square(cfg.size),
         cfg.depth,
-        cfg.sigma,
+        sigma,
         cfg.loss.clone(),
     )?;
     let p = match &cfg.learned {
@@ -54,6 +63,59 @@ pub fn sdf_problem(cfg: &SdfConfig, target: Vec<f64>) -> Result<SdfProblem> {
     }
 }
 
+/// Adam steps each candidate of [`SdfInit::Best`] is followed for (at the schedule's first,
+/// widest σ) before they are compared.
+pub const PROBE_STEPS: u64 = 40;
+
+/// The start [`SdfInit::Best`] picks for `problem`: every [`candidate_starts`] entry followed
+/// for [`PROBE_STEPS`] Adam steps at the first σ of the run (the strategy's learning rate
+/// when it is Adam, else 2e-3); the candidate whose loss is lowest after them, by name, with
+/// its *starting* points (the fit then runs its whole schedule from there). Deterministic.
+pub fn best_start(problem: &SdfProblem, cfg: &SdfConfig) -> Result<(&'static str, Vec<f64>)> {
+    let lr = cfg
+        .strategy
+        .typed::<crate::optim::adam::AdamConfig>()
+        .map_or(2e-3, |a| a.lr);
+    let sigma = problem.sigma_at(0.0);
+    let candidates = candidate_starts(problem.pattern(), problem.target(), problem.view())?;
+    let mut best: Option<(f64, &'static str, Vec<f64>)> = None;
+    for (name, start) in candidates {
+        let Ok(loss) = probe(problem, &start, lr, sigma) else {
+            continue;
+        };
+        if best.as_ref().is_none_or(|b| loss < b.0) {
+            best = Some((loss, name, start));
+        }
+    }
+    let (_, name, theta) = best.ok_or_else(|| {
+        Error::InvalidInput(format!(
+            "no start of pattern `{}` could be followed on this target",
+            problem.pattern().name()
+        ))
+    })?;
+    Ok((name, theta))
+}
+
+/// The loss at width `sigma` after [`PROBE_STEPS`] Adam steps from `start`.
+fn probe(problem: &SdfProblem, start: &[f64], lr: f64, sigma: f64) -> Result<f64> {
+    let (b1, b2, eps) = (0.9f64, 0.999f64, 1e-8);
+    let mut theta = start.to_vec();
+    let (mut m, mut v) = (vec![0.0; theta.len()], vec![0.0; theta.len()]);
+    for t in 1..=PROBE_STEPS as i32 {
+        let g = problem
+            .eval_with(&theta, true, sigma)?
+            .grad
+            .expect("asked for the gradient");
+        for i in 0..theta.len() {
+            m[i] = b1 * m[i] + (1.0 - b1) * g[i];
+            v[i] = b2 * v[i] + (1.0 - b2) * g[i] * g[i];
+            let (mh, vh) = (m[i] / (1.0 - b1.powi(t)), v[i] / (1.0 - b2.powi(t)));
+            theta[i] -= lr * mh / (vh.sqrt() + eps);
+        }
+    }
+    Ok(problem.eval_with(&theta, false, sigma)?.loss)
+}
+
 /// Runs the fit `cfg` describes against `target` (ink in [0, 1], `size × size`), writing
 /// `start.json`, `checkpoint.json` and `log.csv` into `dir`. With `resume`, continues from
 /// the checkpoint there; the render is deterministic, so the result is bit-identical to an
@@ -61,6 +123,7 @@ pub fn sdf_problem(cfg: &SdfConfig, target: Vec<f64>) -> Result<SdfProblem> {
 pub fn run_sdf(
     cfg: &SdfConfig,
     target: Vec<f64>,
+    stroke: Option<f64>,
     dir: &Path,
     resume: bool,
     observers: Vec<Box<dyn Observe<GradState> + Send>>,
@@ -76,17 +139,20 @@ pub fn run_sdf(
         terms: &SDF_TERMS,
     };
     let resume_from = plan.prepare()?;
-    let problem = sdf_problem(cfg, target)?;
+    let problem = sdf_problem(cfg, target, stroke)?;
     let start = plan
         .start(resume_from, || {
-            let t = initial_points(
-                problem.pattern(),
-                problem.target(),
-                problem.view(),
-                cfg.init.kind,
-                cfg.init.jitter,
-                cfg.seed,
-            )?;
+            let t = match cfg.init.kind {
+                SdfInit::Best => best_start(&problem, cfg)?.1,
+                kind => initial_points(
+                    problem.pattern(),
+                    problem.target(),
+                    problem.view(),
+                    kind,
+                    cfg.init.jitter,
+                    cfg.seed,
+                )?,
+            };
             match problem.learned() {
                 Some(l) => l.start(&t, cfg.seed),
                 None => Ok(t),

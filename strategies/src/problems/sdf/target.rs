@@ -9,10 +9,39 @@ use crate::error::{Error, Result};
 /// Pixels with at least this much ink are the shape ("the black pixels" of the paper).
 pub const INK: f64 = 0.5;
 
+/// Scales a framed target (ink in [0, 1]) so that its lines reach full ink: a line thinner
+/// than a pixel of the framed size (a 1-pixel curve of a 1024² picture seen at 128²) keeps
+/// its place but loses its level in the resampling, while the fit draws every line at full
+/// ink, `exp(−d²/σ²)`. The ink level is the 98th percentile of the pixels above a tenth of
+/// the brightest; a target already at full ink is left as it is.
+pub fn stretch_ink(target: &mut [f32]) {
+    let max = target.iter().copied().fold(0.0f32, f32::max);
+    let mut inked: Vec<f32> = target.iter().copied().filter(|&v| v > 0.1 * max).collect();
+    if inked.is_empty() {
+        return;
+    }
+    let k = ((inked.len() - 1) as f64 * 0.98).round() as usize;
+    let level = *inked.select_nth_unstable_by(k, f32::total_cmp).1;
+    if level > 0.0 && level < 1.0 {
+        for v in target.iter_mut() {
+            *v = (*v / level).min(1.0);
+        }
+    }
+}
+
+/// Bounds of the σ [`stroke_sigma`] returns, in pixels.
+pub const STROKE_SIGMA_RANGE: (f64, f64) = (0.75, 4.0);
+
+/// The width σ (pixels) at which the fit's figure, `exp(−d²/σ²)`, is as wide above half ink
+/// as a stroke `width` pixels wide (`σ = W / (2√ln 2)`), within [`STROKE_SIGMA_RANGE`].
+pub fn sigma_for_stroke(width: f64) -> f64 {
+    (width / (2.0 * std::f64::consts::LN_2.sqrt()))
+        .clamp(STROKE_SIGMA_RANGE.0, STROKE_SIGMA_RANGE.1)
+}
+
 /// The exact Euclidean distance, in pixels, from every pixel centre of a `width × height`
-/// image to the nearest pixel with `ink ≥ INK` (0 on those pixels), by the separable
-/// lower-envelope algorithm of Felzenszwalb & Huttenlocher (columns, then rows). Refuses an
-/// image with no such pixel.
+/// image to the nearest pixel with `ink ≥ INK` (0 on those pixels)
+/// ([`ifslab::image::distance_to`]). Refuses an image with no such pixel.
 pub fn distance_transform(ink: &[f64], width: usize, height: usize) -> Result<Vec<f64>> {
     if ink.len() != width * height {
         return Err(Error::InvalidInput(format!(
@@ -20,69 +49,12 @@ pub fn distance_transform(ink: &[f64], width: usize, height: usize) -> Result<Ve
             ink.len()
         )));
     }
-    if !ink.iter().any(|&v| v >= INK) {
-        return Err(Error::InvalidInput(format!(
+    let mask: Vec<bool> = ink.iter().map(|&v| v >= INK).collect();
+    ifslab::image::distance_to(&mask, width, height).ok_or_else(|| {
+        Error::InvalidInput(format!(
             "the target has no pixel with ink ≥ {INK}: nothing to fit (is the polarity right?)"
-        )));
-    }
-    const FAR: f64 = 1e20;
-    let mut f: Vec<f64> = ink
-        .iter()
-        .map(|&v| if v >= INK { 0.0 } else { FAR })
-        .collect();
-    let mut col = vec![0.0; height];
-    let mut out = vec![0.0; height.max(width)];
-    for j in 0..width {
-        for i in 0..height {
-            col[i] = f[i * width + j];
-        }
-        squared_1d(&col, &mut out[..height]);
-        for i in 0..height {
-            f[i * width + j] = out[i];
-        }
-    }
-    let mut row = vec![0.0; width];
-    for i in 0..height {
-        row.copy_from_slice(&f[i * width..(i + 1) * width]);
-        squared_1d(&row, &mut out[..width]);
-        for j in 0..width {
-            f[i * width + j] = out[j].sqrt();
-        }
-    }
-    Ok(f)
-}
-
-/// `out[q] = min_p (q − p)² + f[p]`: the 1-D squared distance transform.
-fn squared_1d(f: &[f64], out: &mut [f64]) {
-    let n = f.len();
-    let mut v = vec![0usize; n];
-    let mut z = vec![0.0f64; n + 1];
-    let mut k = 0usize;
-    z[0] = f64::NEG_INFINITY;
-    z[1] = f64::INFINITY;
-    for q in 1..n {
-        loop {
-            let p = v[k];
-            let s = ((f[q] + (q * q) as f64) - (f[p] + (p * p) as f64)) / (2.0 * (q - p) as f64);
-            if s <= z[k] && k > 0 {
-                k -= 1;
-                continue;
-            }
-            k += 1;
-            v[k] = q;
-            z[k] = s;
-            z[k + 1] = f64::INFINITY;
-            break;
-        }
-    }
-    k = 0;
-    for (q, o) in out.iter_mut().enumerate() {
-        while z[k + 1] < q as f64 {
-            k += 1;
-        }
-        let d = q as f64 - v[k] as f64;
-        *o = d * d + f[v[k]];
-    }
+        ))
+    })
 }
 
 /// The best-fit line of the target's dark pixels (ink ≥ [`INK`]) in the plane of `view`:
@@ -168,5 +140,23 @@ mod tests {
             (b[0] - 0.75).abs() < 1e-12 && (b[1] - 0.75).abs() < 1e-12,
             "{b:?}"
         );
+    }
+
+    #[test]
+    fn faint_lines_are_stretched_to_full_ink_and_strokes_set_sigma() {
+        let mut t = vec![0.0f32, 0.3, 0.1, 0.32, 0.0, 0.31];
+        stretch_ink(&mut t);
+        assert!(
+            t[3] == 1.0 && t[0] == 0.0 && (t[1] - 0.3 / 0.32).abs() < 1e-6,
+            "{t:?}"
+        );
+        let mut full = vec![0.0f32, 1.0, 0.5];
+        stretch_ink(&mut full);
+        assert_eq!(full, vec![0.0, 1.0, 0.5]);
+        // σ for a stroke: half ink at the stroke's edge, within the bounds.
+        let s = sigma_for_stroke(2.5);
+        assert!((2.0 * s * std::f64::consts::LN_2.sqrt() - 2.5).abs() < 1e-12);
+        assert_eq!(sigma_for_stroke(0.1), STROKE_SIGMA_RANGE.0);
+        assert_eq!(sigma_for_stroke(100.0), STROKE_SIGMA_RANGE.1);
     }
 }
