@@ -133,6 +133,10 @@ pub enum Error {
     /// The GPU backend is not there or failed (`device = "cuda"`).
     #[error("GPU: {0}")]
     Device(String),
+
+    /// A job whose buffers would not fit the memory budget ([`crate::budget`]).
+    #[error("{0}")]
+    OverBudget(String),
 }
 
 impl Error {

@@ -18,6 +18,7 @@
 //! `ifslab-experiments`.
 #![warn(missing_docs)]
 
+pub mod budget;
 pub mod chaos;
 pub mod error;
 pub mod image;

@@ -11,6 +11,35 @@ pub fn resolve_code(spec: &str) -> anyhow::Result<IfsCode> {
     if path.exists() {
         return IfsCode::load(path).with_context(|| format!("loading code file {spec}"));
     }
-    library::builtin(spec)
-        .map_err(|e| anyhow::anyhow!("`{spec}` is neither a code file nor a built-in code ({e})"))
+    match library::builtin(spec) {
+        Ok(code) => Ok(code),
+        // A name with a folder or an extension was meant as a file: say it is missing
+        // rather than list the built-in codes.
+        Err(_) if looks_like_path(spec) => Err(missing_file(spec)),
+        Err(e) => Err(anyhow::anyhow!(
+            "`{spec}` is neither a file here nor a built-in code ({e})"
+        )),
+    }
+}
+
+/// Whether `spec` reads as a file's name (it has a folder or an extension) rather than a
+/// built-in name.
+pub fn looks_like_path(spec: &str) -> bool {
+    spec.contains(['/', '\\']) || Path::new(spec).extension().is_some()
+}
+
+/// The error for a file that is not there: its name, and the folder a relative name was
+/// looked for in.
+pub fn missing_file(spec: &str) -> anyhow::Error {
+    let path = Path::new(spec);
+    if path.is_relative()
+        && let Ok(cwd) = std::env::current_dir()
+    {
+        anyhow::anyhow!(
+            "no such file: `{spec}` (looked for it in {})",
+            cwd.display()
+        )
+    } else {
+        anyhow::anyhow!("no such file: `{spec}`")
+    }
 }

@@ -18,6 +18,12 @@ static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// The most memory a command may plan to use (8G, 512M, unlimited): a job whose
+    /// buffers are estimated above it is refused before it allocates them, naming the flag
+    /// to lower. [default: the IFSLAB_MAX_MEMORY environment variable, else 75 % of this
+    /// machine's physical memory]
+    #[arg(long, global = true, value_parser = ifslab::budget::parse_bytes, value_name = "SIZE")]
+    max_memory: Option<u64>,
 }
 
 #[derive(Subcommand, Debug)]
@@ -58,6 +64,9 @@ enum Command {
 
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
+    if let Some(bytes) = cli.max_memory {
+        ifslab::budget::set_process_budget(bytes);
+    }
     match cli.command {
         Command::Demo(a) => cmd::demo::run(a),
         Command::Render(a) => cmd::render::run(a),

@@ -45,6 +45,118 @@ fn every_example_config_is_valid() {
     );
 }
 
+/// Costs checked before they are paid: a render too large for the memory budget is
+/// refused naming the flag and the estimate, before anything is allocated; a centre that is
+/// not a number, a zoom past double precision and a window that holds no point are refused
+/// (nothing written) unless the empty image is asked for; a missing file is called missing.
+#[test]
+fn costs_and_windows_are_checked_before_they_are_paid() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("r.png");
+    let o = out.to_str().unwrap();
+    let refused = |args: &[&str], wants: &[&str]| {
+        let (ok, msg) = ifslab(args);
+        assert!(!ok, "{args:?} succeeded: {msg}");
+        for w in wants {
+            assert!(msg.contains(w), "{args:?}: `{w}` not in {msg}");
+        }
+        assert!(!out.exists(), "{args:?} wrote {o}");
+    };
+    // 100000² would take ~59 GiB: refused at once under an 8 GiB budget (flag or variable).
+    refused(
+        &[
+            "render",
+            "fern",
+            "--size",
+            "100000",
+            "--max-memory",
+            "8G",
+            "-o",
+            o,
+        ],
+        &[
+            "--size",
+            "memory budget of 8.0 GiB",
+            "set by --max-memory",
+            "image 37 GiB",
+        ],
+    );
+    let (ok, msg) = common::ifslab_with(
+        Path::new("."),
+        &[
+            "render", "fern", "--size", "512", "--points", "1000", "-o", o,
+        ],
+        &[("IFSLAB_MAX_MEMORY", "1M")],
+    );
+    assert!(
+        !ok && msg.contains("IFSLAB_MAX_MEMORY") && msg.contains("--size"),
+        "{msg}"
+    );
+    let flame = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../paper_repro/fractal_flames/results/fig4_disc/learned.flame"
+    );
+    refused(
+        &[
+            "flame",
+            "render",
+            flame,
+            "--size",
+            "100000",
+            "100000",
+            "--max-memory",
+            "8G",
+            "-o",
+            o,
+        ],
+        &["histogram", "--size"],
+    );
+    refused(
+        &["render", "fern", "--max-memory", "lots", "-o", o],
+        &["--max-memory"],
+    );
+    refused(
+        &["render", "fern", "--center", "nan,0", "-o", o],
+        &["--center", "finite"],
+    );
+    refused(
+        &[
+            "render", "fern", "--zoom", "1e300", "--points", "1000", "-o", o,
+        ],
+        &["zoom", "past double precision", "zoom at most about"],
+    );
+    // A window beside the attractor: nothing lands in it.
+    let far = [
+        "render", "fern", "--zoom", "8", "--center", "40,40", "--points", "20000",
+    ];
+    refused(
+        &[&far[..], &["-o", o]].concat(),
+        &["none of the 20000 points", "--allow-empty"],
+    );
+    let (ok, msg) = ifslab(&[&far[..], &["--allow-empty", "-o", o]].concat());
+    assert!(ok && out.exists(), "{msg}");
+    std::fs::remove_file(&out).unwrap();
+    // --center alone pans the window (zoom 1): the fern's own centre draws it whole.
+    let (ok, msg) = ifslab(&[
+        "render", "fern", "--center", "0,5", "--size", "64", "--points", "20000", "-o", o,
+    ]);
+    assert!(ok && msg.contains("in window"), "{msg}");
+    std::fs::remove_file(&out).unwrap();
+    // Missing is missing; a mistyped name lists the names.
+    refused(
+        &["invert", "nothere.png", "-o", o],
+        &["no such file: `nothere.png`"],
+    );
+    refused(
+        &["render", "some/folder/code.json", "-o", o],
+        &["no such file"],
+    );
+    refused(
+        &["invert", "fernn", "-o", o],
+        &["built-in code", "sierpinski"],
+    );
+}
+
 #[test]
 fn bad_inputs_get_clear_errors() {
     let tmp = tempfile::tempdir().unwrap();

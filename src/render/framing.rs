@@ -88,6 +88,25 @@ pub fn zoom_window(base: &Framing, zoom: &Zoom) -> Result<Framing> {
     }
     let s = base.size();
     let half = [0.5 * s[0] / zoom.factor, 0.5 * s[1] / zoom.factor];
+    // Doubles near the centre are `scale·ε` apart; a window fewer than 2^20 of those wide
+    // cannot place a megapixel's points apart (nor, far enough, hold any).
+    let scale = c[0].abs().max(c[1].abs()).max(s[0]).max(s[1]);
+    let resolution = scale * f64::EPSILON * (1u64 << 20) as f64;
+    if 2.0 * half[0].min(half[1]) < resolution {
+        return Err(Error::param(
+            "zoom",
+            format!(
+                "{:e} is past double precision here: the window would be {:.1e} wide around \
+                 ({}, {}), where doubles are {:.1e} apart; zoom at most about {:.1e} at this centre",
+                zoom.factor,
+                2.0 * half[0].min(half[1]),
+                c[0],
+                c[1],
+                scale * f64::EPSILON,
+                s[0].min(s[1]) / resolution
+            ),
+        ));
+    }
     Ok(Framing {
         min: [c[0] - half[0], c[1] - half[1]],
         max: [c[0] + half[0], c[1] + half[1]],

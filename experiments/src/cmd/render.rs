@@ -31,9 +31,14 @@ pub struct Args {
     /// Zoom factor (e.g. 8 or 64) applied to the fitted window.
     #[arg(long)]
     pub zoom: Option<f64>,
-    /// Zoom centre as X,Y in the code's coordinates (default: the window's centre).
+    /// Zoom centre as X,Y in the code's coordinates (default: the window's centre); without
+    /// --zoom it moves the window there at its size.
     #[arg(long, value_parser = parse_pair, allow_hyphen_values = true)]
     pub center: Option<[f64; 2]>,
+    /// Write the image even when no point lands in the window (by default that is an
+    /// error: a zoom that missed the attractor, or one too deep to reach it).
+    #[arg(long)]
+    pub allow_empty: bool,
     /// Keep generating until this many points land in the (zoomed) window.
     #[arg(long, default_value_t = 0)]
     pub min_hits: u64,
@@ -67,6 +72,9 @@ pub fn parse_pair(s: &str) -> Result<[f64; 2], String> {
         .trim()
         .parse::<f64>()
         .map_err(|e| format!("bad Y: {e}"))?;
+    if !(x.is_finite() && y.is_finite()) {
+        return Err(format!("X and Y must be finite numbers, got `{s}`"));
+    }
     Ok([x, y])
 }
 
@@ -104,8 +112,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         },
         seed: a.seed,
         view: code.framing.map_or(View::Fit, View::Window),
-        zoom: a.zoom.map(|factor| Zoom {
-            factor,
+        // A centre without a zoom pans the window (zoom 1).
+        zoom: (a.zoom.is_some() || a.center.is_some()).then(|| Zoom {
+            factor: a.zoom.unwrap_or(1.0),
             center: a.center,
         }),
         min_hits: a.min_hits,
@@ -116,13 +125,24 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let pb = progress::bar(cfg.points, "points");
     let raster = render(&maps, &probs, &cfg, Some(&Bar::of(pb.clone())))?;
     pb.finish_and_clear();
+    let s = &raster.stats;
+    if s.points_in_window == 0 && !a.allow_empty {
+        anyhow::bail!(
+            "none of the {} points landed in the window x [{}, {}] y [{}, {}]: the zoom or \
+             centre misses the attractor (nothing written; --allow-empty writes the empty image)",
+            s.points_generated,
+            s.window.min[0],
+            s.window.max[0],
+            s.window.min[1],
+            s.window.max[1]
+        );
+    }
     let depth = if a.sixteen_bit {
         BitDepth::Sixteen
     } else {
         BitDepth::Eight
     };
     raster.save_png(&a.output, depth, a.invert)?;
-    let s = &raster.stats;
     eprintln!(
         "{}: {} points in {:.2} s ({:.1} M points/s), {} in window, window x [{:.4}, {:.4}] y [{:.4}, {:.4}]{}",
         a.output.display(),

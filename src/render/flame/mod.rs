@@ -252,15 +252,18 @@ pub fn render_flame(
     let colors = Colors::new(flame);
     let separate_count = !colors.opaque();
     let hist_bytes = cells * (16 + if separate_count { 4 } else { 0 });
-    if hist_bytes > 16 << 30 {
-        return Err(Error::param(
-            "size",
-            format!(
-                "{iw}×{ih} at supersample {os} needs a {} GiB histogram; lower the size or the supersampling",
-                hist_bytes >> 30
-            ),
-        ));
-    }
+    // One histogram at least (more copies only within `histogram_budget`), the density
+    // accumulator and the image: checked before any of them is allocated.
+    crate::budget::check_memory(
+        &crate::budget::MemoryEstimate::new()
+            .with(
+                format!("{iw}×{ih} at supersample {os}: histogram"),
+                hist_bytes,
+            )
+            .with("accumulator", cells.saturating_mul(16))
+            .with("image", iw as u64 * ih as u64 * 4),
+        "the size (--size) or the supersampling (--supersample)",
+    )?;
 
     let camera = Camera::new(flame, width, height, gutter);
     let selector = Selector::new(flame)?;

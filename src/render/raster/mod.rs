@@ -34,6 +34,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use crate::budget::{MemoryEstimate, check_memory};
 use crate::chaos::{Isa, LANES, MapSampler, PointSink, PointStream};
 use crate::error::{Error, Result};
 use crate::model::affine::Map2;
@@ -116,19 +117,6 @@ impl RenderConfig {
                 format!("must lie in 1..=64, got {}", self.supersample),
             ));
         }
-        let sub = self.width as u64 * self.height as u64 * (self.supersample as u64).pow(2);
-        if self.mode == RenderMode::Coverage && sub > (1u64 << 36) {
-            return Err(Error::param(
-                "supersample",
-                format!(
-                    "{}×{} at {}× needs {} GiB of coverage bits per thread; lower the size or the supersampling",
-                    self.width,
-                    self.height,
-                    self.supersample,
-                    sub >> 33
-                ),
-            ));
-        }
         if self.points == 0 {
             return Err(Error::param("points", "must be at least 1"));
         }
@@ -152,6 +140,30 @@ impl RenderConfig {
             ));
         }
         Ok(())
+    }
+
+    /// What the render's buffers take on `threads` worker threads: each thread's
+    /// accumulator (coverage bits of the supersampled grid, or a count per pixel) with its
+    /// tile bins (about half as much again), and the image's values and its PNG.
+    pub fn memory_estimate(&self, threads: usize) -> MemoryEstimate {
+        let (w, h, s) = (
+            self.width as u64,
+            self.height as u64,
+            self.supersample as u64,
+        );
+        let per_thread = match self.mode {
+            RenderMode::Coverage => (w * s).div_ceil(64) * 8 * h * s,
+            RenderMode::Density => w * h * 4,
+        };
+        let per_thread = per_thread.saturating_add(per_thread / 2);
+        let label = match self.mode {
+            RenderMode::Coverage => format!("coverage bits and bins × {threads} threads"),
+            RenderMode::Density => format!("counts and bins × {threads} threads"),
+        };
+        MemoryEstimate::new()
+            .with(label, per_thread.saturating_mul(threads.max(1) as u64))
+            .with("image", w * h * 4)
+            .with("PNG", w * h * 2)
     }
 
     fn trajectories_per_round(&self) -> usize {
@@ -324,6 +336,10 @@ pub fn render_with_isa<M: Map2>(
     isa: Isa,
 ) -> Result<Raster> {
     cfg.validate()?;
+    check_memory(
+        &cfg.memory_estimate(rayon::current_num_threads()),
+        "the size (--size) or the supersampling (--supersample)",
+    )?;
     let isa = isa.checked()?;
     if maps.is_empty() {
         return Err(Error::Empty("the code has no maps".into()));

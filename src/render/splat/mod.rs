@@ -58,6 +58,7 @@ pub use frame::{FrameState, SplatFraming};
 pub use kernel::{Blend, SplatGrid, SplatReal, SplatState, release_buffers};
 pub use trajectories::TrajectoryTape;
 
+use crate::budget::MemoryEstimate;
 use crate::chaos::ChaosGame;
 use crate::error::{Error, Result};
 use crate::model::diff_map::{DiffMap2, check_finite_params, flat_params, param_offsets};
@@ -192,6 +193,28 @@ impl SplatConfig {
         }
         self.framing.validate()?;
         self.device.check()
+    }
+
+    /// What one call's buffers take (f64, the larger precision): the transmittance of
+    /// every supersampled pixel in the worst case that points reach every tile, the image,
+    /// its gradient and the target, the trajectory tape and the binned points.
+    pub fn memory_estimate(&self) -> MemoryEstimate {
+        let (w, h, s) = (
+            self.width as u64,
+            self.height as u64,
+            self.supersample as u64,
+        );
+        let points = (self.game.trajectories as u64).saturating_mul(self.game.length as u64 + 1);
+        MemoryEstimate::new()
+            .with(
+                "supersampled grid",
+                (w * s).saturating_mul(h * s).saturating_mul(8),
+            )
+            .with("image, gradient and target", w * h * 8 * 3)
+            .with(
+                "trajectories and binned points",
+                points.saturating_mul(18 + 64),
+            )
     }
 
     /// The supersampled grid.

@@ -662,6 +662,12 @@ impl InversionConfig {
             "renderer",
             self.splat_config().validate().map_err(Error::from),
         )?;
+        // The differentiable render's buffers, before a run allocates any of them.
+        ifslab::budget::check_memory(
+            &self.splat_config().memory_estimate(),
+            "`target.size` (--size), `renderer.supersample` (--supersample) or \
+             `generator.trajectories` (--trajectories)",
+        )?;
         if let Some(end) = self.renderer.sigma_final
             && !(end.is_finite() && end > 0.0)
         {
