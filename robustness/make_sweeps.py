@@ -8,7 +8,8 @@ One sweep per front-end, beside the manifest (`invert.toml`, `sdf.toml`, `flame.
 `points.toml`): every case of the front-end's families as one value of the `case` axis (its
 file, its truth and its true map count), crossed with the recipes as groups: `ifslab` (the
 defaults: nothing set) and `paper` (`paper = true`), plus any `--recipe` given (a name and
-overrides, for tuning). `invert` also crosses `maps` = the true N and 10. Each run's config
+overrides, for tuning). `invert` runs each case with the true N (`CASE@true`) and 10 maps
+(`CASE@ten`; a 10-map code once). Each run's config
 is what the front-end's command line says at its defaults:
 
     ifslab invert FILE --maps N           ↔ problem = "image", target.image, model.maps
@@ -65,9 +66,10 @@ FRONT_ENDS = {
             "target.truth": c["truth"],
             "model.maps": c["maps"],
         },
-        "extra_axes": [
-            ("maps", [("true", {}), ("ten", {"model.maps": 10})]),
-        ],
+        # Each case twice, with the true N (`@true`) and with 10 maps (`@ten`); a code of
+        # 10 maps once (both are the same run, which a sweep refuses to hold twice).
+        "variants": lambda c: [("true", {})] + ([("ten", {"model.maps": 10})] if c["maps"] != 10 else []),
+        "extra_axes": [],
         "slurm": {"cpus_per_task": 2, "time": "00:30:00", "mem": "4G"},
     },
     "sdf": {
@@ -128,7 +130,10 @@ def write_sweep(split_dir, name, cases, recipes, split, suffix=""):
     lines += ["", "[[axis]]", 'name = "case"']
     for c in cases:
         sets = {k: v for k, v in fe["case"](c).items() if v is not None}
-        lines += ["[[axis.value]]", f'label = "{c["id"]}"', f"set = {inline(sets)}"]
+        variants = fe["variants"](c) if "variants" in fe else [(None, {})]
+        for variant, more in variants:
+            label = c["id"] if variant is None else f'{c["id"]}@{variant}'
+            lines += ["[[axis.value]]", f'label = "{label}"', f"set = {inline({**sets, **more})}"]
     for axis, values in fe["extra_axes"]:
         lines += ["", "[[axis]]", f'name = "{axis}"']
         for label, sets in values:

@@ -6,8 +6,8 @@ recipe (sweep group) side by side, from the `results.csv` that `ifslab collect` 
         --sdf out/rb/test_sdf --flame out/rb/test_flame \
         --points out/rb/test_points --invert out/rb/test_invert [--invert OTHER ...]
 
-A folder may be a collected sweep (its `report/results.csv` is read) or a copy of that
-report (`results.csv` in it). Every front-end is optional; each given one prints a
+A folder may be a collected sweep (its `report/results.csv` is read), a copy of that
+report (`results.csv` in it) or the CSV file itself (`robustness/results/*.csv`, committed). Every front-end is optional; each given one prints a
 markdown table. Cases are matched to the split's `manifest.json` by their `case` label.
 Standard library only.
 """
@@ -31,7 +31,7 @@ FRONT_ENDS = {
 
 def read_results(folder):
     folder = Path(folder)
-    for path in (folder / "report" / "results.csv", folder / "results.csv"):
+    for path in (folder, folder / "report" / "results.csv", folder / "results.csv"):
         if path.is_file():
             with open(path, newline="") as f:
                 return list(csv.DictReader(f))
@@ -52,6 +52,8 @@ def case_rows(case):
     """The (variation, value) rows a case counts in, besides its family."""
     v = case.get("variations", {})
     rows = []
+    if case["family"] == "photos":
+        return rows  # no goal but the family's median: its variations are the shapes'
     if case["family"].startswith("points"):
         noisy = (v.get("noise") or 0) > 0
         outl = (v.get("outliers") or 0) > 0
@@ -86,6 +88,27 @@ def fmt_cell(values, rule, refused):
     return f"{ok}/{n} ({mid})" + (f", {refused} refused" if refused else "")
 
 
+def add(cells, columns, seconds, r, case, col, score):
+    """Counts run `r` of `case` in column `col` of every row the case belongs to."""
+    columns[col] = None
+    if r["status"] not in ("finished", "failed"):
+        return  # not run (yet): neither a score nor a refusal
+    refused = r["status"] == "failed"
+    try:
+        value = float(r.get(score) or "nan")
+    except ValueError:
+        value = float("nan")
+    if not refused and r.get("seconds"):
+        seconds.setdefault(col, []).append(float(r["seconds"]))
+    for row in [("family", case["family"])] + case_rows(case):
+        vals, ref = cells.get((row, col), ([], 0))
+        if refused:
+            ref += 1
+        else:
+            vals.append(value)
+        cells[(row, col)] = (vals, ref)
+
+
 def table(front, manifest, results):
     score, rule, what = FRONT_ENDS[front]
     cases = {c["id"]: c for c in manifest["cases"]}
@@ -94,26 +117,19 @@ def table(front, manifest, results):
     cells = {}  # (row, column) -> ([scores], refused)
     seconds = {}
     for r in results:
-        case = cases.get(r["case"])
+        # `CASE@true` / `CASE@ten` (invert): the map count is part of the label; a code
+        # of 10 maps ran once and counts as both. An older sweep had a `maps` column.
+        case_id, _, maps = r["case"].partition("@")
+        maps = maps or r.get("maps") or ""
+        case = cases.get(case_id)
         if case is None:
             raise SystemExit(f"case {r['case']!r} is not in the manifest")
-        col = r["group"] + (f", {r['maps']} N" if r.get("maps") else "")
-        columns[col] = None
-        refused = r["status"] != "finished"
-        try:
-            value = float(r.get(score) or "nan")
-        except ValueError:
-            value = float("nan")
-        if not refused and r.get("seconds"):
-            seconds.setdefault(col, []).append(float(r["seconds"]))
-        for row in [("family", case["family"])] + case_rows(case):
-            vals, ref = cells.get((row, col), ([], 0))
-            if refused:
-                ref += 1
-            else:
-                vals.append(value)
-            cells[(row, col)] = (vals, ref)
+        both = maps == "true" and case.get("maps") == 10
+        for m in (["true", "ten"] if both else [maps]):
+            add(cells, columns, seconds, r, case, r["group"] + (f", {m} N" if m else ""),
+                score)
     rows = OrderedDict()
+
     for (row, _col) in cells:
         rows[row] = None
     order = sorted(rows, key=lambda rv: (rv[0] != "family", rv[0], rv[1]))

@@ -22,6 +22,7 @@ pub mod budget;
 pub mod chaos;
 pub mod error;
 pub mod image;
+pub mod interrupt;
 pub mod io;
 pub mod loss;
 pub mod metrics;

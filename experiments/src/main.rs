@@ -64,6 +64,11 @@ enum Command {
 
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
+    // Ctrl-C, SIGTERM and SIGHUP: a checkpointed run stops at the end of its iteration with
+    // a checkpoint (`--resume` continues it); anything else ends at once, as by default.
+    ctrlc::set_handler(|| {
+        ifslab::interrupt::on_signal();
+    })?;
     if let Some(bytes) = cli.max_memory {
         ifslab::budget::set_process_budget(bytes);
     }

@@ -157,6 +157,95 @@ fn costs_and_windows_are_checked_before_they_are_paid() {
     );
 }
 
+/// SIGTERM and Ctrl-C (SIGINT) stop an inversion at the end of an iteration with a
+/// checkpoint — written although the run checkpoints never on its own — and `--resume`
+/// continues it to exactly the uninterrupted result.
+#[test]
+fn a_signalled_inversion_checkpoints_and_resumes_to_the_uninterrupted_result() {
+    use std::time::{Duration, Instant};
+    let tmp = tempfile::tempdir().unwrap();
+    let args = |out: &str| -> Vec<String> {
+        [
+            "invert",
+            "sierpinski",
+            "--maps",
+            "3",
+            "--iters",
+            "300",
+            "--size",
+            "32",
+            "--trajectories",
+            "100",
+            "--length",
+            "40",
+            "--checkpoint-every",
+            "0",
+            "-o",
+            out,
+        ]
+        .map(String::from)
+        .to_vec()
+    };
+    let run = |out: &str| {
+        let a = args(out);
+        let a: Vec<&str> = a.iter().map(String::as_str).collect();
+        let (ok, msg) = common::ifslab_in(tmp.path(), &a);
+        assert!(ok, "{msg}");
+    };
+    run("whole");
+    let read = |dir: &str, f: &str| std::fs::read_to_string(tmp.path().join(dir).join(f)).unwrap();
+    for (signal, dir) in [("-TERM", "term"), ("-INT", "int")] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_ifslab"))
+            .current_dir(tmp.path())
+            .args(args(dir))
+            .env("RUST_BACKTRACE", "0")
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // Signalled once the optimisation is under way (20 iterations logged).
+        let log = tmp.path().join(dir).join("log.csv");
+        let t0 = Instant::now();
+        while std::fs::read_to_string(&log).map_or(0, |t| t.lines().count()) < 20 {
+            assert!(
+                t0.elapsed() < Duration::from_secs(120),
+                "the run never started"
+            );
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        let pid = child.id().to_string();
+        assert!(
+            Command::new("kill")
+                .args([signal, &pid])
+                .status()
+                .unwrap()
+                .success()
+        );
+        let out = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success(),
+            "{signal}: the run was not stopped: {err}"
+        );
+        assert!(
+            err.contains("interrupted after iteration") && err.contains("--resume"),
+            "{err}"
+        );
+        assert!(
+            tmp.path().join(dir).join("checkpoint.json").is_file(),
+            "{signal}: {err}"
+        );
+        assert!(!tmp.path().join(dir).join("summary.json").exists());
+        let (ok, msg) = common::ifslab_in(tmp.path(), &["invert", "--resume", dir]);
+        assert!(ok, "{msg}");
+        assert_eq!(
+            read(dir, "code.json"),
+            read("whole", "code.json"),
+            "{signal}"
+        );
+    }
+}
+
 #[test]
 fn bad_inputs_get_clear_errors() {
     let tmp = tempfile::tempdir().unwrap();

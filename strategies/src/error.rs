@@ -25,6 +25,10 @@ pub enum Error {
     /// A numerical degeneracy the strategy could not recover from.
     #[error("numerical failure: {0}")]
     Numerical(String),
+
+    /// The run was stopped by a signal after checkpointing ([`ifslab::interrupt`]).
+    #[error("{0}")]
+    Interrupted(String),
     /// A file that could not be read, parsed or written.
     #[error("{path}: {message}")]
     File {

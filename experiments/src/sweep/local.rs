@@ -223,10 +223,15 @@ pub fn run_sweep(
     let next = AtomicUsize::new(0);
     let results = Mutex::new(Vec::new());
     let failed = AtomicUsize::new(0);
+    // A signal lets the runs under way stop at their next checkpoint and starts no other.
+    let _watch = ifslab::interrupt::Watch::start();
     std::thread::scope(|s| {
         for _ in 0..opts.jobs.min(todo.len()) {
             s.spawn(|| {
                 loop {
+                    if ifslab::interrupt::requested() {
+                        break;
+                    }
                     let k = next.fetch_add(1, Ordering::SeqCst);
                     let Some(r) = todo.get(k) else { break };
                     let status = match run_one(r, out, opts.threads, per_run) {
@@ -247,6 +252,12 @@ pub fn run_sweep(
         }
     });
     overall.finish();
+    if ifslab::interrupt::requested() {
+        anyhow::bail!(
+            "interrupted: the runs under way stopped at a checkpoint; run the same sweep \
+             command again to resume them and do the rest"
+        );
+    }
     outcome
         .runs
         .extend(results.into_inner().unwrap_or_else(|p| p.into_inner()));

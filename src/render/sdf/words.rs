@@ -51,6 +51,20 @@ impl WordTree {
                 ));
             }
         }
+        // Words of every length, a bounding disk each, and the leaves' points.
+        let leaves = n.unwrap_or(usize::MAX) as u64;
+        let words = (0..=depth).fold(0u64, |a, k| {
+            a.saturating_add((m as u64).saturating_pow(k as u32))
+        });
+        crate::budget::check_memory(
+            &crate::budget::MemoryEstimate::new()
+                .with(
+                    format!("{words} words to depth {depth} with their bounds"),
+                    words.saturating_mul(std::mem::size_of::<SegmentMap>() as u64 + 24),
+                )
+                .with("leaf primitives", leaves.saturating_mul(32)),
+            "the depth (--depth)",
+        )?;
         let mut levels = vec![vec![SegmentMap::IDENTITY]];
         for k in 0..depth {
             let prev = &levels[k];

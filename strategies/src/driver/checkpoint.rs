@@ -12,6 +12,9 @@ use serde::{Deserialize, Serialize, de::DeserializeOwned};
 
 use super::GradState;
 
+/// How an interrupted run's error begins.
+pub const INTERRUPTED: &str = "interrupted";
+
 /// What a checkpoint file holds.
 #[derive(Serialize, Deserialize)]
 struct Record<S> {
@@ -72,6 +75,24 @@ impl<S: Serialize + DeserializeOwned> Checkpoint<S, GradState> for JsonCheckpoin
             costs,
         })?;
         ifslab::io::write_atomic(&self.path, &bytes)?;
+        Ok(())
+    }
+
+    /// Saves on the schedule, and after any iteration at which a stop was asked for
+    /// ([`ifslab::interrupt`]); then the run ends with an error that says how to continue it.
+    fn save_cond(&self, solver: &S, state: &GradState, iter: u64) -> Result<(), ArgminError> {
+        let due = self.every > 0 && iter.is_multiple_of(self.every);
+        let stop = ifslab::interrupt::requested();
+        if due || stop {
+            self.save(solver, state)?;
+        }
+        if stop {
+            return Err(super::to_argmin(crate::Error::Interrupted(format!(
+                "{INTERRUPTED} after iteration {iter}: the checkpoint is saved ({}); continue \
+                 the run with --resume",
+                self.path.display()
+            ))));
+        }
         Ok(())
     }
 

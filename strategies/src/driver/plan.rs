@@ -129,6 +129,8 @@ impl RunPlan<'_> {
                 seed: self.seed,
             },
         )?;
+        // A signal now stops the run at the end of an iteration, checkpointed.
+        let _watch = ifslab::interrupt::Watch::start();
         let theta0 = if resume_from.is_some() {
             Vec::new()
         } else {
