@@ -120,6 +120,10 @@ fn costs_and_windows_are_checked_before_they_are_paid() {
         &["--center", "finite"],
     );
     refused(
+        &["sdf", "render", "koch", "--sigma", "nan", "-o", o],
+        &["--sigma", "> 0"],
+    );
+    refused(
         &[
             "render", "fern", "--zoom", "1e300", "--points", "1000", "-o", o,
         ],

@@ -251,6 +251,10 @@ fn render(a: RenderArgs) -> anyhow::Result<()> {
         .or_else(|| meta["depth"].as_u64().map(|d| d as usize))
         .unwrap_or(6);
     let sigma = a.sigma.or_else(|| meta["sigma"].as_f64()).unwrap_or(1.0);
+    anyhow::ensure!(
+        sigma.is_finite() && sigma > 0.0,
+        "--sigma must be a width > 0 pixels, got {sigma}"
+    );
     let fitted_view: Option<SdfView> = serde_json::from_value(meta["view"].clone()).ok();
     let view = match (fitted_view, a.size) {
         (Some(v), None) => v,
