@@ -163,7 +163,8 @@ fn costs_and_windows_are_checked_before_they_are_paid() {
 
 /// SIGTERM and Ctrl-C (SIGINT) stop an inversion at the end of an iteration with a
 /// checkpoint — written although the run checkpoints never on its own — and `--resume`
-/// continues it to exactly the uninterrupted result.
+/// continues it to exactly the uninterrupted result. While it runs, a second process on its
+/// folder is refused.
 #[test]
 fn a_signalled_inversion_checkpoints_and_resumes_to_the_uninterrupted_result() {
     use std::time::{Duration, Instant};
@@ -199,7 +200,7 @@ fn a_signalled_inversion_checkpoints_and_resumes_to_the_uninterrupted_result() {
     run("whole");
     let read = |dir: &str, f: &str| std::fs::read_to_string(tmp.path().join(dir).join(f)).unwrap();
     for (signal, dir) in [("-TERM", "term"), ("-INT", "int")] {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_ifslab"))
+        let child = Command::new(env!("CARGO_BIN_EXE_ifslab"))
             .current_dir(tmp.path())
             .args(args(dir))
             .env("RUST_BACKTRACE", "0")
@@ -217,6 +218,14 @@ fn a_signalled_inversion_checkpoints_and_resumes_to_the_uninterrupted_result() {
             );
             std::thread::sleep(Duration::from_millis(5));
         }
+        // A second process on the same folder is refused while the first writes it.
+        let twin = args(dir);
+        let twin: Vec<&str> = twin.iter().map(String::as_str).collect();
+        let (ok, msg) = common::ifslab_in(tmp.path(), &twin);
+        assert!(
+            !ok && msg.contains("another ifslab process is writing"),
+            "{msg}"
+        );
         let pid = child.id().to_string();
         assert!(
             Command::new("kill")

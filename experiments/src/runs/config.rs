@@ -240,6 +240,11 @@ impl RunConfig {
         resume: bool,
         progress: Box<dyn Progress>,
     ) -> anyhow::Result<RunReport> {
+        // One process per run folder (an image run takes the lock in `run_and_report`).
+        let _lock = match self {
+            RunConfig::Image(_) => None,
+            _ => Some(super::lock_run_dir(dir)?),
+        };
         match self {
             RunConfig::Image(cfg) => {
                 let s = inversion::run_and_report(cfg, dir, resume, progress)?;
