@@ -109,9 +109,20 @@ def add(cells, columns, seconds, r, case, col, score):
         cells[(row, col)] = (vals, ref)
 
 
-def table(front, manifest, results):
+def common_cases(results):
+    """The cases every recipe (group) ran."""
+    by_group = {}
+    for r in results:
+        by_group.setdefault(r["group"], set()).add(r["case"].partition("@")[0])
+    return set.intersection(*by_group.values()) if by_group else set()
+
+
+def table(front, manifest, results, common=False):
     score, rule, what = FRONT_ENDS[front]
     cases = {c["id"]: c for c in manifest["cases"]}
+    if common:
+        keep = common_cases(results)
+        results = [r for r in results if r["case"].partition("@")[0] in keep]
     # Columns: every recipe (group), and for invert every map count as well.
     columns = OrderedDict()
     cells = {}  # (row, column) -> ([scores], refused)
@@ -156,6 +167,8 @@ def main():
     for front in FRONT_ENDS:
         ap.add_argument(f"--{front}", action="append", default=[],
                         help=f"collected `{front}` sweep folder(s)")
+    ap.add_argument("--common", action="store_true",
+                    help="only the cases every recipe ran (the paper's invert runs on a subset)")
     a = ap.parse_args()
     manifest = json.load(open(Path(a.split_dir) / "manifest.json"))
     for front in FRONT_ENDS:
@@ -163,7 +176,7 @@ def main():
         if not folders:
             continue
         results = [r for folder in folders for r in read_results(folder)]
-        print(table(front, manifest, results))
+        print(table(front, manifest, results, a.common))
         print()
 
 

@@ -170,6 +170,124 @@ impl MemoryBudget {
     }
 }
 
+/// The environment variable that sets the work budget (`24h`, `90m`, `unlimited`).
+pub const WORK_ENV: &str = "IFSLAB_MAX_WORK";
+
+/// The work a job may plan when no budget is set: a day.
+pub const DEFAULT_WORK_SECONDS: f64 = 24.0 * 3600.0;
+
+static PROCESS_WORK: OnceLock<f64> = OnceLock::new();
+
+/// Sets this process's work budget in seconds (once; later calls return false).
+pub fn set_process_work_budget(seconds: f64) -> bool {
+    PROCESS_WORK.set(seconds).is_ok()
+}
+
+/// The work budget in force, in seconds: the process's (`--max-work`), else [`WORK_ENV`]'s,
+/// else [`DEFAULT_WORK_SECONDS`].
+pub fn work_budget() -> Result<(f64, &'static str)> {
+    if let Some(&s) = PROCESS_WORK.get() {
+        return Ok((s, "set by --max-work"));
+    }
+    if let Ok(text) = std::env::var(WORK_ENV) {
+        let s = parse_duration(&text)
+            .map_err(|e| Error::param(WORK_ENV, format!("environment variable: {e}")))?;
+        return Ok((s, "set by IFSLAB_MAX_WORK"));
+    }
+    Ok((DEFAULT_WORK_SECONDS, "the default"))
+}
+
+/// Refuses a job estimated to take `seconds` (`what` says how it was estimated) above the
+/// work budget; `lower` names the settings that shorten it.
+pub fn check_work(seconds: f64, what: &str, lower: &str) -> Result<()> {
+    let (budget, whence) = work_budget()?;
+    if seconds <= budget {
+        return Ok(());
+    }
+    Err(Error::OverBudget(format!(
+        "this job would take about {} ({what}), over the work budget of {} ({whence}); lower \
+         {lower}, or move the budget with --max-work (or {WORK_ENV})",
+        human_duration(seconds),
+        human_duration(budget)
+    )))
+}
+
+/// Seconds as `40 s`, `12 min`, `5.0 h`, `58 days`, `3.1e5 years`.
+pub fn human_duration(s: f64) -> String {
+    if !s.is_finite() {
+        return "unlimited".into();
+    }
+    let (v, unit) = if s < 60.0 {
+        (s, "s")
+    } else if s < 3600.0 {
+        (s / 60.0, "min")
+    } else if s < 2.0 * 86400.0 {
+        (s / 3600.0, "h")
+    } else if s < 2.0 * 365.0 * 86400.0 {
+        (s / 86400.0, "days")
+    } else {
+        return format!("{:.1e} years", s / (365.0 * 86400.0));
+    };
+    if v < 10.0 {
+        format!("{v:.1} {unit}")
+    } else {
+        format!("{v:.0} {unit}")
+    }
+}
+
+/// Reads a duration: seconds, or a number with `s`, `m`, `h` or `d`; or `unlimited`.
+pub fn parse_duration(text: &str) -> std::result::Result<f64, String> {
+    let t = text.trim().to_ascii_lowercase();
+    if matches!(t.as_str(), "unlimited" | "none") {
+        return Ok(f64::INFINITY);
+    }
+    let split = t
+        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .unwrap_or(t.len());
+    let (num, unit) = t.split_at(split);
+    let v: f64 = num
+        .parse()
+        .map_err(|_| format!("`{text}` is not a duration (e.g. 24h, 90m, unlimited)"))?;
+    let scale = match unit.trim() {
+        "" | "s" => 1.0,
+        "m" | "min" => 60.0,
+        "h" => 3600.0,
+        "d" => 86400.0,
+        _ => return Err(format!("`{text}`: unknown unit (use s, m, h or d)")),
+    };
+    if !(v > 0.0 && v.is_finite()) {
+        return Err(format!("`{text}` must be a positive duration"));
+    }
+    Ok(v * scale)
+}
+
+/// Reads a count: an integer, a float in exponent form (`1e15`), or with a suffix `K`, `M`,
+/// `G` (thousands, millions, billions); refused when not a whole number ≥ 0 below 2⁶⁴.
+pub fn parse_count(text: &str) -> std::result::Result<u64, String> {
+    let t = text.trim().replace('_', "");
+    let (num, scale) = match t.chars().last() {
+        Some('k' | 'K') => (&t[..t.len() - 1], 1e3),
+        Some('m' | 'M') => (&t[..t.len() - 1], 1e6),
+        Some('g' | 'G' | 'b' | 'B') => (&t[..t.len() - 1], 1e9),
+        _ => (t.as_str(), 1.0),
+    };
+    if scale == 1.0
+        && let Ok(n) = num.parse::<u64>()
+    {
+        return Ok(n);
+    }
+    let v: f64 = num
+        .parse()
+        .map_err(|_| format!("`{text}` is not a count (e.g. 50000000, 5e7 or 50M)"))?;
+    let v = v * scale;
+    if !((0.0..1.8e19).contains(&v) && v.fract() == 0.0) {
+        return Err(format!(
+            "`{text}` is not a whole number of at least 0 below 1.8e19"
+        ));
+    }
+    Ok(v as u64)
+}
+
 /// Checks `estimate` against [`MemoryBudget::current`].
 pub fn check_memory(estimate: &MemoryEstimate, lower: &str) -> Result<()> {
     MemoryBudget::current()?.check(estimate, lower)
@@ -271,6 +389,24 @@ mod tests {
         assert!(err.contains("--max-memory"), "{err}");
         assert!(MemoryBudget::bytes(43 << 30).check(&est, "--size").is_ok());
         assert!(MemoryBudget::unlimited().check(&est, "--size").is_ok());
+    }
+
+    #[test]
+    fn counts_and_durations_parse() {
+        assert_eq!(parse_count("50000000").unwrap(), 50_000_000);
+        assert_eq!(parse_count("5e7").unwrap(), 50_000_000);
+        assert_eq!(parse_count("50M").unwrap(), 50_000_000);
+        assert_eq!(parse_count("1e15").unwrap(), 1_000_000_000_000_000);
+        for bad in ["", "nan", "inf", "-1", "1.5", "1e30", "lots"] {
+            assert!(parse_count(bad).is_err(), "{bad}");
+        }
+        assert_eq!(parse_duration("90m").unwrap(), 5400.0);
+        assert_eq!(parse_duration("24h").unwrap(), 86400.0);
+        assert_eq!(parse_duration("unlimited").unwrap(), f64::INFINITY);
+        for bad in ["", "0", "-1h", "5 parsecs", "nan"] {
+            assert!(parse_duration(bad).is_err(), "{bad}");
+        }
+        assert_eq!(human_duration(5e6), "58 days");
     }
 
     #[test]

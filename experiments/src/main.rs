@@ -24,6 +24,11 @@ struct Cli {
     /// machine's physical memory]
     #[arg(long, global = true, value_parser = ifslab::budget::parse_bytes, value_name = "SIZE")]
     max_memory: Option<u64>,
+    /// The longest a command may plan to run (24h, 90m, unlimited): a job whose estimated
+    /// time is above it (`render --points 1e15`) is refused before it starts, with the
+    /// estimate. [default: the IFSLAB_MAX_WORK environment variable, else 24h]
+    #[arg(long, global = true, value_parser = ifslab::budget::parse_duration, value_name = "DURATION")]
+    max_work: Option<f64>,
 }
 
 #[derive(Subcommand, Debug)]
@@ -71,6 +76,9 @@ fn main() -> anyhow::Result<()> {
     })?;
     if let Some(bytes) = cli.max_memory {
         ifslab::budget::set_process_budget(bytes);
+    }
+    if let Some(seconds) = cli.max_work {
+        ifslab::budget::set_process_work_budget(seconds);
     }
     match cli.command {
         Command::Demo(a) => cmd::demo::run(a),

@@ -123,6 +123,15 @@ fn costs_and_windows_are_checked_before_they_are_paid() {
         &["sdf", "render", "koch", "--sigma", "nan", "-o", o],
         &["--sigma", "> 0"],
     );
+    // Work that would run for days is refused with its estimate.
+    refused(
+        &["render", "fern", "--points", "1e15", "-o", o],
+        &["days", "work budget of 24 h", "--points", "--max-work"],
+    );
+    refused(
+        &["render", "fern", "--points", "1.5", "-o", o],
+        &["whole number"],
+    );
     refused(
         &[
             "render", "fern", "--zoom", "1e300", "--points", "1000", "-o", o,

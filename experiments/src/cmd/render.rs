@@ -16,8 +16,8 @@ pub struct Args {
     /// Output PNG.
     #[arg(short, long, default_value = "render.png")]
     pub output: PathBuf,
-    /// Points to generate (after warm-up).
-    #[arg(long, default_value_t = 50_000_000)]
+    /// Points to generate (after warm-up): 50000000, 5e7 or 50M.
+    #[arg(long, default_value = "50M", value_parser = ifslab::budget::parse_count)]
     pub points: u64,
     /// Image side in pixels (square), or WIDTHxHEIGHT.
     #[arg(long, default_value = "1024")]
@@ -40,10 +40,10 @@ pub struct Args {
     #[arg(long)]
     pub allow_empty: bool,
     /// Keep generating until this many points land in the (zoomed) window.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value = "0", value_parser = ifslab::budget::parse_count)]
     pub min_hits: u64,
     /// Cap on points generated when --min-hits is set (default 64 × --points).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value = "0", value_parser = ifslab::budget::parse_count)]
     pub max_points: u64,
     /// Wall-clock cap in seconds for --min-hits rounds (result then depends on speed).
     #[arg(long)]

@@ -34,7 +34,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::budget::{MemoryEstimate, check_memory};
+use crate::budget::{MemoryEstimate, check_memory, check_work};
 use crate::chaos::{Isa, LANES, MapSampler, PointSink, PointStream};
 use crate::error::{Error, Result};
 use crate::model::affine::Map2;
@@ -316,6 +316,11 @@ pub(crate) trait Accumulator: Send {
     fn finish(self, width: u32, height: u32) -> Vec<f32>;
 }
 
+/// The evaluation renderer's speed used to estimate a job's time before it starts: points
+/// per second and thread, on the fast side of what this machine measures (BENCHMARKS.md),
+/// so that only jobs that would surely run past the work budget are refused.
+pub const POINTS_PER_SECOND_PER_THREAD: f64 = 1e8;
+
 /// Renders the attractor of `maps` (drawn with `probs`) as configured.
 pub fn render<M: Map2>(
     maps: &[M],
@@ -336,10 +341,28 @@ pub fn render_with_isa<M: Map2>(
     isa: Isa,
 ) -> Result<Raster> {
     cfg.validate()?;
+    let threads = rayon::current_num_threads();
     check_memory(
-        &cfg.memory_estimate(rayon::current_num_threads()),
+        &cfg.memory_estimate(threads),
         "the size (--size) or the supersampling (--supersample)",
     )?;
+    // The most points the rounds may generate; a time limit bounds the work itself.
+    if cfg.time_limit.is_none() {
+        let most = if cfg.min_hits > 0 {
+            if cfg.max_points > 0 {
+                cfg.max_points
+            } else {
+                cfg.points.saturating_mul(64)
+            }
+        } else {
+            cfg.points
+        };
+        check_work(
+            most as f64 / (POINTS_PER_SECOND_PER_THREAD * threads as f64),
+            &format!("{most} points at ~1e8 points/s per thread on {threads} threads"),
+            "the points (--points, or --max-points with --min-hits)",
+        )?;
+    }
     let isa = isa.checked()?;
     if maps.is_empty() {
         return Err(Error::Empty("the code has no maps".into()));
