@@ -145,8 +145,8 @@ def table(front, manifest, results, common=False):
         rows[row] = None
     order = sorted(rows, key=lambda rv: (rv[0] != "family", rv[0], rv[1]))
     cols = list(columns)
-    out = [f"#### `{front}`: {what} (cells: passed/runs (median)" +
-           (")" if rule else "; mean of finished runs)"),
+    out = [f"#### `{front}`: {what} " +
+           ("(cells: passed/runs (median))" if rule else "(cells: the mean over the runs)"),
            "",
            "| variation | value | " + " | ".join(cols) + " |",
            "|---|---|" + "---:|" * len(cols)]
