@@ -123,19 +123,8 @@ impl Image {
     /// composited (alpha 1 where the file has none): for loaders that decide themselves what
     /// a transparent pixel means.
     pub fn load_rgba(path: &Path) -> Result<Self> {
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-        let img = image::load_from_memory(&bytes).map_err(|e| Error::Image {
-            path: path.to_owned(),
-            message: format!("not a readable image ({e})"),
-        })?;
-        let rgba = img.to_rgba32f();
+        let rgba = decode_rgba(path)?;
         let (width, height) = rgba.dimensions();
-        if width == 0 || height == 0 {
-            return Err(Error::Image {
-                path: path.to_owned(),
-                message: "image has no pixels".into(),
-            });
-        }
         let values: Vec<f32> = (0..4)
             .flat_map(|c| rgba.pixels().map(move |p| p.0[c].clamp(0.0, 1.0)))
             .collect();
@@ -145,19 +134,8 @@ impl Image {
     /// Reads any file the `image` crate reads, as grey (luma, alpha composited onto white)
     /// or, with `rgb`, as three planes (alpha composited onto white).
     pub fn load(path: &Path, rgb: bool) -> Result<Self> {
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-        let img = image::load_from_memory(&bytes).map_err(|e| Error::Image {
-            path: path.to_owned(),
-            message: format!("not a readable image ({e})"),
-        })?;
-        let rgba = img.to_rgba32f();
+        let rgba = decode_rgba(path)?;
         let (width, height) = rgba.dimensions();
-        if width == 0 || height == 0 {
-            return Err(Error::Image {
-                path: path.to_owned(),
-                message: "image has no pixels".into(),
-            });
-        }
         let over_white = |v: f32, a: f32| (v * a + (1.0 - a)).clamp(0.0, 1.0);
         let values: Vec<f32> = if rgb {
             (0..3)
@@ -283,6 +261,24 @@ fn squared_1d(f: &[f64], out: &mut [f64]) {
         let d = q as f64 - v[k] as f64;
         *o = d * d + f[v[k]];
     }
+}
+
+/// Decodes any file the `image` crate reads to RGBA floats; refuses an unreadable file and
+/// one without pixels, naming it.
+fn decode_rgba(path: &Path) -> Result<image::Rgba32FImage> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let img = image::load_from_memory(&bytes).map_err(|e| Error::Image {
+        path: path.to_owned(),
+        message: format!("not a readable image ({e})"),
+    })?;
+    let rgba = img.to_rgba32f();
+    if rgba.width() == 0 || rgba.height() == 0 {
+        return Err(Error::Image {
+            path: path.to_owned(),
+            message: "image has no pixels".into(),
+        });
+    }
+    Ok(rgba)
 }
 
 #[cfg(test)]

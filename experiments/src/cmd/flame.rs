@@ -272,25 +272,17 @@ fn learn_table(a: &LearnArgs) -> anyhow::Result<toml::Table> {
             l.into()
         })
         .collect();
-    let mut t = toml::Table::new();
-    let mut set = |key: &str, v: Option<toml::Value>| {
-        if let Some(v) = v {
-            ifslab_experiments::sweep::expand::set_dotted(&mut t, key, v)
-                .expect("flag keys are distinct config keys");
-        }
-    };
-    let int = |v: Option<u64>| v.map(|v| toml::Value::Integer(v as i64));
-    let size = |v: Option<usize>| v.map(|v| toml::Value::Integer(v as i64));
-    set("problem", Some("flame".into()));
-    set("paper", Some(a.paper.into()));
-    set("target", Some(target.to_string_lossy().into_owned().into()));
-    set("flames", Some(layers.into()));
-    set("sampler.size", size(a.size));
-    set("sampler.trajectories", size(a.trajectories));
-    set("eval_size", size(a.eval_size));
-    set("iterations", int(a.iters));
-    set("seed", int(a.seed));
-    set("background", a.background.clone().map(Into::into));
+    let mut t = super::Flags::default();
+    t.set("problem", Some("flame".into()));
+    t.set("paper", Some(a.paper.into()));
+    t.set("target", Some(target.to_string_lossy().into_owned().into()));
+    t.set("flames", Some(layers.into()));
+    t.set("sampler.size", super::count(a.size));
+    t.set("sampler.trajectories", super::count(a.trajectories));
+    t.set("eval_size", super::count(a.eval_size));
+    t.set("iterations", super::count(a.iters));
+    t.set("seed", super::count(a.seed));
+    t.set("background", a.background.clone().map(Into::into));
     let kind = a.optimiser.clone().or_else(|| {
         a.lr.is_some()
             .then(|| if a.paper { "gd" } else { "adam" }.into())
@@ -301,14 +293,14 @@ fn learn_table(a: &LearnArgs) -> anyhow::Result<toml::Table> {
         } else {
             0.1
         });
-        set("strategy.kind", Some(kind.into()));
-        set("strategy.lr", Some(lr.into()));
+        t.set("strategy.kind", Some(kind.into()));
+        t.set("strategy.lr", Some(lr.into()));
     }
-    set(
+    t.set(
         "output",
         Some(a.output.to_string_lossy().into_owned().into()),
     );
-    Ok(t)
+    Ok(t.0)
 }
 
 /// `flame` with its size and quality overridden as the command line asks.

@@ -189,36 +189,27 @@ fn fit_config(a: &FitArgs) -> anyhow::Result<RunConfig> {
 
 /// The settings given as flags (those left out are not in the table).
 fn flag_table(a: &FitArgs) -> anyhow::Result<toml::Table> {
-    let mut t = toml::Table::new();
-    let mut set = |key: &str, v: Option<toml::Value>| {
-        if let Some(v) = v {
-            ifslab_experiments::sweep::expand::set_dotted(&mut t, key, v)
-                .expect("flag keys are distinct config keys");
-        }
-    };
-    let int = |v: Option<u64>| v.map(|v| toml::Value::Integer(v as i64));
-    let size = |v: Option<usize>| v.map(|v| toml::Value::Integer(v as i64));
-    let float = |v: Option<f64>| v.map(toml::Value::Float);
-    set(
+    let mut t = super::Flags::default();
+    t.set(
         "polarity",
         a.polarity.map(|p| toml::Value::try_from(p)).transpose()?,
     );
-    set("depth", size(a.depth));
-    set("truth", a.truth.clone().map(toml::Value::String));
-    set("size", size(a.size));
-    set("sigma", float(a.sigma));
+    t.set("depth", super::count(a.depth));
+    t.set("truth", a.truth.clone().map(toml::Value::String));
+    t.set("size", super::count(a.size));
+    t.set("sigma", super::float(a.sigma));
     // A width given is the width drawn.
-    set("stroke_sigma", a.sigma.map(|_| false.into()));
-    set("sigma_start", float(a.sigma_start));
-    set("sigma_iterations", int(a.sigma_iterations));
-    set("loss.levels", size(a.levels));
-    set("iterations", int(a.iterations));
-    set("seed", int(a.seed));
-    set("loss.distance", float(a.distance_weight));
-    set("loss.crossing", float(a.crossing_weight));
-    set("loss.crossing_depth", size(a.crossing_depth));
-    set("loss.scale_barrier", float(a.scale_barrier));
-    set("loss.max_scale", float(a.max_scale));
+    t.set("stroke_sigma", a.sigma.map(|_| false.into()));
+    t.set("sigma_start", super::float(a.sigma_start));
+    t.set("sigma_iterations", super::count(a.sigma_iterations));
+    t.set("loss.levels", super::count(a.levels));
+    t.set("iterations", super::count(a.iterations));
+    t.set("seed", super::count(a.seed));
+    t.set("loss.distance", super::float(a.distance_weight));
+    t.set("loss.crossing", super::float(a.crossing_weight));
+    t.set("loss.crossing_depth", super::count(a.crossing_depth));
+    t.set("loss.scale_barrier", super::float(a.scale_barrier));
+    t.set("loss.max_scale", super::float(a.max_scale));
     if let Some(init) = &a.init {
         let kind = match init.as_str() {
             "line" => SdfInit::Line,
@@ -227,14 +218,14 @@ fn flag_table(a: &FitArgs) -> anyhow::Result<toml::Table> {
             "best" => SdfInit::Best,
             other => anyhow::bail!("--init must be line, pattern, given or best, got `{other}`"),
         };
-        set("init.kind", Some(toml::Value::try_from(kind)?));
+        t.set("init.kind", Some(toml::Value::try_from(kind)?));
     }
-    set("init.jitter", float(a.jitter));
+    t.set("init.jitter", super::float(a.jitter));
     if let Some(lr) = a.lr {
-        set("strategy.kind", Some(AdamConfig::KIND.into()));
-        set("strategy.lr", Some(lr.into()));
+        t.set("strategy.kind", Some(AdamConfig::KIND.into()));
+        t.set("strategy.lr", Some(lr.into()));
     }
-    Ok(t)
+    Ok(t.0)
 }
 
 fn render(a: RenderArgs) -> anyhow::Result<()> {
