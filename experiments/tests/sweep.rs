@@ -384,6 +384,7 @@ values = ["adam", "cold_hybrid"]
             RunStatus::Finished(_) => "finished",
             RunStatus::Failed(_) => "failed",
             RunStatus::Busy => "busy",
+            RunStatus::Interrupted => "interrupted",
         })
         .collect();
     assert_eq!(

@@ -144,6 +144,8 @@ pub enum RunStatus {
     Failed(String),
     /// Another process holds it.
     Busy,
+    /// Stopped by a signal at a checkpoint; the next attempt resumes it.
+    Interrupted,
 }
 
 /// What a call of [`run_sweep`] did, run by run (the shard's runs, in sweep order).
@@ -223,8 +225,8 @@ pub fn run_sweep(
     let next = AtomicUsize::new(0);
     let results = Mutex::new(Vec::new());
     let failed = AtomicUsize::new(0);
-    // A signal lets the runs under way stop at their next checkpoint and starts no other.
-    let _watch = ifslab::interrupt::Watch::start();
+    // A signal stops a run under way at its next checkpoint where the run can (a strategy
+    // run holds the watch); then no other run is started.
     std::thread::scope(|s| {
         for _ in 0..opts.jobs.min(todo.len()) {
             s.spawn(|| {
@@ -310,6 +312,8 @@ fn run_one(
                 report = Some(rep);
                 resumed = true;
             }
+            // Stopped by a signal: its checkpoint stays for the next attempt.
+            Err(_) if ifslab::interrupt::requested() => return Ok(RunStatus::Interrupted),
             Err(_) => {
                 std::fs::remove_dir_all(&partial)
                     .with_context(|| format!("clearing {}", partial.display()))?;
@@ -327,6 +331,7 @@ fn run_one(
                 .with_context(|| format!("creating {}", partial.display()))?;
             match pool.install(|| r.config.run(&partial, false, per_run(r))) {
                 Ok(rep) => rep,
+                Err(_) if ifslab::interrupt::requested() => return Ok(RunStatus::Interrupted),
                 Err(e) => {
                     let text = format!("{e:#}\n");
                     let _ = ifslab::io::write_atomic(&partial.join(ERROR_FILE), text.as_bytes());
