@@ -506,7 +506,7 @@ values = ["adam", "cold_hybrid"]
 }
 
 #[test]
-fn a_killed_sweep_resumes_to_the_uninterrupted_result() {
+fn a_killed_or_signalled_sweep_resumes_to_the_uninterrupted_result() {
     let tmp = tempfile::tempdir().unwrap();
     std::fs::write(
         tmp.path().join("base.toml"),
@@ -558,6 +558,50 @@ fn a_killed_sweep_resumes_to_the_uninterrupted_result() {
     assert!(ok, "{msg}");
     assert_eq!(
         summary(&run_dir(&killed, id)),
+        summary(&run_dir(&whole, id))
+    );
+    // SIGTERM (Slurm's time limit, a shutdown) instead: the run stops at the end of its
+    // iteration with a checkpoint of it, is not marked failed, and resumes to the same end.
+    let termed = tmp.path().join("termed");
+    let t = termed.to_string_lossy().into_owned();
+    let child = Command::new(env!("CARGO_BIN_EXE_ifslab"))
+        .args(["sweep", &s, "-o", &t, "--only", "seed=1", "--threads", "2"])
+        .env("RUST_BACKTRACE", "0")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let ckpt = partial_dir(&termed, id).join("checkpoint.json");
+    let t0 = std::time::Instant::now();
+    while !ckpt.is_file() && t0.elapsed().as_secs() < 300 {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let pid = child.id().to_string();
+    assert!(
+        Command::new("kill")
+            .args(["-TERM", &pid])
+            .status()
+            .unwrap()
+            .success()
+    );
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("interrupted"),
+        "{err}"
+    );
+    assert!(
+        !run_dir(&termed, id).exists(),
+        "stopped before it finished: {err}"
+    );
+    assert!(
+        !partial_dir(&termed, id).join("error.txt").exists(),
+        "marked failed"
+    );
+    let (ok, msg) = ifslab(&["sweep", &s, "-o", &t, "--only", "seed=1"]);
+    assert!(ok, "{msg}");
+    assert_eq!(
+        summary(&run_dir(&termed, id)),
         summary(&run_dir(&whole, id))
     );
     // A third call has nothing to do.
