@@ -170,45 +170,35 @@ fn costs_and_windows_are_checked_before_they_are_paid() {
     );
 }
 
-/// SIGTERM and Ctrl-C (SIGINT) stop an inversion at the end of an iteration with a
-/// checkpoint — written although the run checkpoints never on its own — and `--resume`
-/// continues it to exactly the uninterrupted result. While it runs, a second process on its
-/// folder is refused.
-#[test]
-fn a_signalled_inversion_checkpoints_and_resumes_to_the_uninterrupted_result() {
+/// Runs `cmd` (its args without `-o`) uninterrupted into `whole`, then once per signal into
+/// a folder of its own, signalled after `lines` rows of its log: the run must stop with a
+/// checkpoint and say how to continue, a second process on its folder must be refused while
+/// it runs, and `resume` (args, then the folder) must end with `result` equal to the
+/// uninterrupted run's.
+fn signalled_runs_resume(
+    cmd: &[&str],
+    resume: &[&str],
+    result: &str,
+    lines: usize,
+    signals: &[&str],
+) {
     use std::time::{Duration, Instant};
     let tmp = tempfile::tempdir().unwrap();
     let args = |out: &str| -> Vec<String> {
-        [
-            "invert",
-            "sierpinski",
-            "--maps",
-            "3",
-            "--iters",
-            "300",
-            "--size",
-            "32",
-            "--trajectories",
-            "100",
-            "--length",
-            "40",
-            "--checkpoint-every",
-            "0",
-            "-o",
-            out,
-        ]
-        .map(String::from)
-        .to_vec()
+        cmd.iter()
+            .chain(&["-o", out])
+            .map(|a| a.to_string())
+            .collect()
     };
-    let run = |out: &str| {
-        let a = args(out);
+    let run = |a: Vec<String>| {
         let a: Vec<&str> = a.iter().map(String::as_str).collect();
-        let (ok, msg) = common::ifslab_in(tmp.path(), &a);
-        assert!(ok, "{msg}");
+        common::ifslab_in(tmp.path(), &a)
     };
-    run("whole");
-    let read = |dir: &str, f: &str| std::fs::read_to_string(tmp.path().join(dir).join(f)).unwrap();
-    for (signal, dir) in [("-TERM", "term"), ("-INT", "int")] {
+    let (ok, msg) = run(args("whole"));
+    assert!(ok, "{msg}");
+    let read = |dir: &str| std::fs::read_to_string(tmp.path().join(dir).join(result)).unwrap();
+    for signal in signals {
+        let dir = &format!("sig{signal}");
         let child = Command::new(env!("CARGO_BIN_EXE_ifslab"))
             .current_dir(tmp.path())
             .args(args(dir))
@@ -217,20 +207,18 @@ fn a_signalled_inversion_checkpoints_and_resumes_to_the_uninterrupted_result() {
             .stderr(std::process::Stdio::piped())
             .spawn()
             .unwrap();
-        // Signalled once the optimisation is under way (20 iterations logged).
+        // Signalled once the optimisation is under way.
         let log = tmp.path().join(dir).join("log.csv");
         let t0 = Instant::now();
-        while std::fs::read_to_string(&log).map_or(0, |t| t.lines().count()) < 20 {
+        while std::fs::read_to_string(&log).map_or(0, |t| t.lines().count()) < lines {
             assert!(
                 t0.elapsed() < Duration::from_secs(120),
-                "the run never started"
+                "{cmd:?}: the run never started"
             );
-            std::thread::sleep(Duration::from_millis(5));
+            std::thread::sleep(Duration::from_millis(2));
         }
         // A second process on the same folder is refused while the first writes it.
-        let twin = args(dir);
-        let twin: Vec<&str> = twin.iter().map(String::as_str).collect();
-        let (ok, msg) = common::ifslab_in(tmp.path(), &twin);
+        let (ok, msg) = run(args(dir));
         assert!(
             !ok && msg.contains("another ifslab process is writing"),
             "{msg}"
@@ -238,7 +226,7 @@ fn a_signalled_inversion_checkpoints_and_resumes_to_the_uninterrupted_result() {
         let pid = child.id().to_string();
         assert!(
             Command::new("kill")
-                .args([signal, &pid])
+                .args([*signal, pid.as_str()])
                 .status()
                 .unwrap()
                 .success()
@@ -247,7 +235,7 @@ fn a_signalled_inversion_checkpoints_and_resumes_to_the_uninterrupted_result() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(
             !out.status.success(),
-            "{signal}: the run was not stopped: {err}"
+            "{cmd:?} {signal}: the run was not stopped: {err}"
         );
         assert!(
             err.contains("interrupted after iteration") && err.contains("--resume"),
@@ -258,14 +246,93 @@ fn a_signalled_inversion_checkpoints_and_resumes_to_the_uninterrupted_result() {
             "{signal}: {err}"
         );
         assert!(!tmp.path().join(dir).join("summary.json").exists());
-        let (ok, msg) = common::ifslab_in(tmp.path(), &["invert", "--resume", dir]);
+        let (ok, msg) = run(resume
+            .iter()
+            .map(|a| a.to_string())
+            .chain([dir.to_string()])
+            .collect());
         assert!(ok, "{msg}");
-        assert_eq!(
-            read(dir, "code.json"),
-            read("whole", "code.json"),
-            "{signal}"
-        );
+        assert_eq!(read(dir), read("whole"), "{cmd:?} {signal}");
     }
+}
+
+/// SIGTERM and Ctrl-C (SIGINT) stop an inversion at the end of an iteration with a
+/// checkpoint — written although the run checkpoints never on its own — and `--resume`
+/// continues it to exactly the uninterrupted result. While it runs, a second process on its
+/// folder is refused.
+#[test]
+fn a_signalled_inversion_checkpoints_and_resumes_to_the_uninterrupted_result() {
+    let cmd = [
+        "invert",
+        "sierpinski",
+        "--maps",
+        "3",
+        "--iters",
+        "300",
+        "--size",
+        "32",
+        "--trajectories",
+        "100",
+        "--length",
+        "40",
+        "--checkpoint-every",
+        "0",
+    ];
+    signalled_runs_resume(
+        &cmd,
+        &["invert", "--resume"],
+        "code.json",
+        20,
+        &["-TERM", "-INT"],
+    );
+}
+
+/// The same for a segment-pattern fit and a flame, which share the strategy driver.
+#[test]
+fn signalled_sdf_and_flame_fits_resume_to_the_uninterrupted_result() {
+    let data = |f: &str| format!("{}/../data/{f}", env!("CARGO_MANIFEST_DIR"));
+    let koch = data("sdf/koch_128.png");
+    let sdf = [
+        "sdf",
+        "fit",
+        &koch,
+        "--pattern",
+        "koch",
+        "--depth",
+        "4",
+        "--size",
+        "96",
+        "--iterations",
+        "4000",
+    ];
+    signalled_runs_resume(
+        &sdf,
+        &["sdf", "fit", "--resume", "-o"],
+        "pattern.json",
+        100,
+        &["-INT"],
+    );
+    let circles = data("paintings/circles3.png");
+    let flame = [
+        "flame",
+        "learn",
+        &circles,
+        "--size",
+        "48",
+        "--eval-size",
+        "0",
+        "--iters",
+        "100",
+        "--xforms",
+        "4",
+    ];
+    signalled_runs_resume(
+        &flame,
+        &["flame", "learn", "--resume", "-o"],
+        "learned.flame",
+        10,
+        &["-TERM"],
+    );
 }
 
 #[test]
