@@ -133,6 +133,10 @@ fn costs_and_windows_are_checked_before_they_are_paid() {
         &["whole number"],
     );
     refused(
+        &["invert", "sierpinski", "--iters", "1e9", "-o", o],
+        &["days", "--iters", "--max-work"],
+    );
+    refused(
         &[
             "render", "fern", "--zoom", "1e300", "--points", "1000", "-o", o,
         ],

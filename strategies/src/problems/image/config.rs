@@ -399,6 +399,12 @@ pub const DEFAULT_TRAJECTORIES: usize = 1000;
 /// ifslab's steps per trajectory, warm-up included (`generator.length`).
 pub const DEFAULT_LENGTH: usize = 110;
 
+/// The differentiable splat's speed used to estimate a run's time before it starts:
+/// points splatted forward and backward per second and thread, about ten times what this
+/// machine measures (BENCHMARKS.md §2), so that only runs that would surely take past the
+/// work budget are refused.
+pub const SPLAT_POINTS_PER_SECOND_PER_THREAD: f64 = 2e7;
+
 /// ifslab's σ at the end of a run (`renderer.sigma_final`): σ shrinks from 1 to 0.4
 /// supersampled pixels, Table 3's best row (paper_repro/chaotic_splatting/README.md).
 pub const DEFAULT_SIGMA_FINAL: f64 = 0.4;
@@ -661,6 +667,17 @@ impl InversionConfig {
         in_section(
             "renderer",
             self.splat_config().validate().map_err(Error::from),
+        )?;
+        // The run's work: every iteration splats (and differentiates) every point.
+        let points = (self.generator.trajectories as f64) * (self.generator.length as f64);
+        let threads = rayon::current_num_threads().max(1) as f64;
+        ifslab::budget::check_work(
+            self.iterations as f64 * points / (SPLAT_POINTS_PER_SECOND_PER_THREAD * threads),
+            &format!(
+                "{} iterations of {} points at ~{:.0e} points/s per thread on {threads} threads",
+                self.iterations, points, SPLAT_POINTS_PER_SECOND_PER_THREAD
+            ),
+            "`iterations` (--iters) or `generator.trajectories` (--trajectories)",
         )?;
         // The differentiable render's buffers, before a run allocates any of them.
         ifslab::budget::check_memory(
