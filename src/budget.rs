@@ -241,10 +241,7 @@ pub fn parse_duration(text: &str) -> std::result::Result<f64, String> {
     if matches!(t.as_str(), "unlimited" | "none") {
         return Ok(f64::INFINITY);
     }
-    let split = t
-        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
-        .unwrap_or(t.len());
-    let (num, unit) = t.split_at(split);
+    let (num, unit) = split_unit(&t);
     let v: f64 = num
         .parse()
         .map_err(|_| format!("`{text}` is not a duration (e.g. 24h, 90m, unlimited)"))?;
@@ -314,6 +311,14 @@ pub fn human_bytes(b: u64) -> String {
     }
 }
 
+/// `"8G"` → `("8", "G")`: the leading digits and dots, and the rest.
+fn split_unit(t: &str) -> (&str, &str) {
+    t.split_at(
+        t.find(|c: char| !(c.is_ascii_digit() || c == '.'))
+            .unwrap_or(t.len()),
+    )
+}
+
 /// Reads a size: a number of bytes with an optional unit (`K`, `M`, `G`, `T`, with or
 /// without `i`/`B`, powers of 1024), or `unlimited` / `none`.
 pub fn parse_bytes(text: &str) -> std::result::Result<u64, String> {
@@ -321,10 +326,7 @@ pub fn parse_bytes(text: &str) -> std::result::Result<u64, String> {
     if matches!(t.to_ascii_lowercase().as_str(), "unlimited" | "none") {
         return Ok(u64::MAX);
     }
-    let split = t
-        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
-        .unwrap_or(t.len());
-    let (num, unit) = t.split_at(split);
+    let (num, unit) = split_unit(t);
     let value: f64 = num
         .parse()
         .map_err(|_| format!("`{text}` is not a size (e.g. 8G, 512M, unlimited)"))?;

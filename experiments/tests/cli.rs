@@ -227,20 +227,8 @@ fn signalled_runs_resume(
             !ok && msg.contains("another ifslab process is writing"),
             "{msg}"
         );
-        let pid = child.id().to_string();
-        assert!(
-            Command::new("kill")
-                .args([*signal, pid.as_str()])
-                .status()
-                .unwrap()
-                .success()
-        );
-        let out = child.wait_with_output().unwrap();
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert!(
-            !out.status.success(),
-            "{cmd:?} {signal}: the run was not stopped: {err}"
-        );
+        let (ok, err) = common::signal_and_wait(child, signal);
+        assert!(!ok, "{cmd:?} {signal}: the run was not stopped: {err}");
         assert!(
             err.contains("interrupted after iteration") && err.contains("--resume"),
             "{err}"

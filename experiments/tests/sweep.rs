@@ -576,20 +576,8 @@ fn a_killed_or_signalled_sweep_resumes_to_the_uninterrupted_result() {
     while !ckpt.is_file() && t0.elapsed().as_secs() < 300 {
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
-    let pid = child.id().to_string();
-    assert!(
-        Command::new("kill")
-            .args(["-TERM", &pid])
-            .status()
-            .unwrap()
-            .success()
-    );
-    let out = child.wait_with_output().unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        !out.status.success() && err.contains("interrupted"),
-        "{err}"
-    );
+    let (ok, err) = common::signal_and_wait(child, "-TERM");
+    assert!(!ok && err.contains("interrupted"), "{err}");
     assert!(
         !run_dir(&termed, id).exists(),
         "stopped before it finished: {err}"

@@ -51,6 +51,22 @@ pub fn fill_absent(table: &mut toml::Table, preset: toml::Table) {
     }
 }
 
+/// Parses a config from `table` with the recipe it names filled in where it leaves keys
+/// out (`preset(paper, table)`, merged by [`fill_absent`]); errors name `origin`. The caller
+/// validates the result.
+pub fn resolve<T: serde::de::DeserializeOwned>(
+    mut table: toml::Table,
+    origin: &std::path::Path,
+    preset: impl FnOnce(bool, &toml::Table) -> toml::Table,
+) -> Result<T> {
+    let paper = paper_flag(&table).map_err(|e| Error::file(origin, e))?;
+    let preset = preset(paper, &table);
+    fill_absent(&mut table, preset);
+    toml::Value::Table(table)
+        .try_into()
+        .map_err(|e| Error::file(origin, e))
+}
+
 /// A resolved table written before recipes existed has no `paper` key, and its absent
 /// optional values meant the paper's defaults: it is read as the paper's recipe. Tables
 /// that name a recipe are left as they are.

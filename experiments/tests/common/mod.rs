@@ -32,3 +32,21 @@ pub fn ifslab_in(dir: &Path, args: &[&str]) -> (bool, String) {
 pub fn ifslab(args: &[&str]) -> (bool, String) {
     ifslab_in(Path::new("."), args)
 }
+
+/// Sends `signal` (`-TERM`, `-INT`) to `child` and waits for it: whether it succeeded, and
+/// its stderr (the child's stderr must be piped).
+pub fn signal_and_wait(child: std::process::Child, signal: &str) -> (bool, String) {
+    let pid = child.id().to_string();
+    assert!(
+        Command::new("kill")
+            .args([signal, pid.as_str()])
+            .status()
+            .unwrap()
+            .success()
+    );
+    let out = child.wait_with_output().unwrap();
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}

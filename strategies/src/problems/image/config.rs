@@ -510,13 +510,8 @@ impl InversionConfig {
     /// A config from a parsed TOML table: the recipe's values merged where the table
     /// leaves keys out ([`InversionConfig::preset`]), then parsed and validated; an unknown
     /// or mistyped field is an error that names it.
-    pub fn from_table(mut table: toml::Table, origin: &Path) -> Result<Self> {
-        let paper = crate::recipe::paper_flag(&table).map_err(|e| Error::file(origin, e))?;
-        let preset = InversionConfig::preset(paper, &table);
-        crate::recipe::fill_absent(&mut table, preset);
-        let cfg: InversionConfig = toml::Value::Table(table)
-            .try_into()
-            .map_err(|e| Error::file(origin, e))?;
+    pub fn from_table(table: toml::Table, origin: &Path) -> Result<Self> {
+        let cfg: InversionConfig = crate::recipe::resolve(table, origin, InversionConfig::preset)?;
         cfg.validate()?;
         Ok(cfg)
     }

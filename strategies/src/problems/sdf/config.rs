@@ -190,13 +190,8 @@ impl SdfConfig {
 
     /// A config from a parsed TOML table: the recipe's values merged where the table
     /// leaves keys out ([`SdfConfig::preset`]), then parsed and validated.
-    pub fn from_table(mut table: toml::Table, origin: &Path) -> Result<Self> {
-        let paper = crate::recipe::paper_flag(&table).map_err(|e| Error::file(origin, e))?;
-        let preset = SdfConfig::preset(paper, &table);
-        crate::recipe::fill_absent(&mut table, preset);
-        let cfg: SdfConfig = toml::Value::Table(table)
-            .try_into()
-            .map_err(|e| Error::file(origin, e))?;
+    pub fn from_table(table: toml::Table, origin: &Path) -> Result<Self> {
+        let cfg: SdfConfig = crate::recipe::resolve(table, origin, SdfConfig::preset)?;
         cfg.validate()?;
         Ok(cfg)
     }
