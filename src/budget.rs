@@ -212,7 +212,7 @@ pub fn check_work(seconds: f64, what: &str, lower: &str) -> Result<()> {
     )))
 }
 
-/// Seconds as `40 s`, `12 min`, `5.0 h`, `58 days`, `3.1e5 years`.
+/// Seconds as `40 s`, `12 min`, `5.0 h`, `58 days`, `30 years`, `3.1e5 years`.
 pub fn human_duration(s: f64) -> String {
     if !s.is_finite() {
         return "unlimited".into();
@@ -225,6 +225,8 @@ pub fn human_duration(s: f64) -> String {
         (s / 3600.0, "h")
     } else if s < 2.0 * 365.0 * 86400.0 {
         (s / 86400.0, "days")
+    } else if s < 1e4 * 365.0 * 86400.0 {
+        (s / (365.0 * 86400.0), "years")
     } else {
         return format!("{:.1e} years", s / (365.0 * 86400.0));
     };
@@ -409,6 +411,8 @@ mod tests {
             assert!(parse_duration(bad).is_err(), "{bad}");
         }
         assert_eq!(human_duration(5e6), "58 days");
+        assert_eq!(human_duration(9.5e8), "30 years");
+        assert_eq!(human_duration(1e13), "3.2e5 years");
     }
 
     #[test]

@@ -19,11 +19,13 @@
 //! - [`plot`]: line charts, scatter plots, heat maps and vector fields with a bundled font;
 //! - [`progress`]: the progress callback;
 //! - [`codes::resolve_code`]: a code from a file or a built-in name;
+//! - [`inputs::parse`]: every input format parsed from bytes (fuzz targets, regression corpus);
 //! - [`sweep`]: many runs from one sweep file: locally, in shards, as a Slurm job array, and
 //!   their collected report.
 #![warn(missing_docs)]
 
 pub mod codes;
+pub mod inputs;
 pub mod plot;
 pub mod progress;
 pub mod runs;

@@ -136,6 +136,31 @@ fn costs_and_windows_are_checked_before_they_are_paid() {
         &["invert", "sierpinski", "--iters", "1e9", "-o", o],
         &["days", "--iters", "--max-work"],
     );
+    // So is every front-end's: the SDF fit, the flame learner, EM on a point cloud.
+    let data = |f: &str| format!("{}/../data/{f}", env!("CARGO_MANIFEST_DIR"));
+    let (koch, circles) = (data("sdf/koch_128.png"), data("paintings/circles3.png"));
+    refused(
+        &[
+            "sdf",
+            "fit",
+            &koch,
+            "--pattern",
+            "koch",
+            "--iters",
+            "1e9",
+            "-o",
+            o,
+        ],
+        &["days", "pixels/s", "--iters", "--max-work"],
+    );
+    refused(
+        &["flame", "learn", &circles, "--iterations", "1e9", "-o", o],
+        &["days", "samples/s", "--iters", "--max-work"],
+    );
+    refused(
+        &["fit-points", "ifs:sierpinski", "--iters", "1e9", "-o", o],
+        &["days", "point × code evaluations", "--max-work"],
+    );
     refused(
         &[
             "render", "fern", "--zoom", "1e300", "--points", "1000", "-o", o,

@@ -281,3 +281,74 @@ fn the_seeds_themselves_parse() {
         number_spans(b"a1 [-2.5e3, 7]")
     );
 }
+
+/// The regression corpus (`tests/corpus/`): hostile inputs of every format, each refused
+/// without a panic and with the words `tests/corpus/expect.toml` pins for it (the field or
+/// the reason). Every file is listed there and every listed file exists, so an input added
+/// to the corpus (a crash a fuzz run found, say) must say what its refusal names.
+#[test]
+fn the_regression_corpus_is_refused_by_name() {
+    let root = repo("experiments/tests/corpus");
+    let expect: toml::Table = std::fs::read_to_string(root.join("expect.toml"))
+        .unwrap()
+        .parse()
+        .unwrap();
+    let mut files = Vec::new();
+    for dir in std::fs::read_dir(&root).unwrap() {
+        let dir = dir.unwrap().path();
+        if dir.is_dir() {
+            for f in std::fs::read_dir(&dir).unwrap() {
+                files.push(f.unwrap().path());
+            }
+        }
+    }
+    files.sort();
+    let scratch = tempfile::tempdir().unwrap();
+    let mut failures = Vec::new();
+    for path in &files {
+        let rel = path
+            .strip_prefix(&root)
+            .unwrap()
+            .to_string_lossy()
+            .replace('\\', "/");
+        let format = rel.split('/').next().unwrap().to_string();
+        let bytes = std::fs::read(path).unwrap();
+        // Images are decoded from a file: a copy, so the corpus is never written.
+        let at = if format == "image" {
+            scratch.path().join(path.file_name().unwrap())
+        } else {
+            path.clone()
+        };
+        let outcome = std::panic::catch_unwind(move || {
+            ifslab_experiments::inputs::parse(&format, &bytes, &at)
+        });
+        let wants: Vec<String> = match expect.get(&rel) {
+            Some(toml::Value::String(w)) => vec![w.clone()],
+            Some(toml::Value::Array(a)) => a
+                .iter()
+                .filter_map(|v| v.as_str().map(String::from))
+                .collect(),
+            _ => {
+                failures.push(format!("{rel}: not listed in expect.toml"));
+                continue;
+            }
+        };
+        match outcome {
+            Err(_) => failures.push(format!("{rel}: panicked")),
+            Ok(Ok(())) => failures.push(format!("{rel}: accepted")),
+            Ok(Err(msg)) => {
+                for w in &wants {
+                    if !msg.contains(w.as_str()) {
+                        failures.push(format!("{rel}: `{w}` not in: {msg}"));
+                    }
+                }
+            }
+        }
+    }
+    for listed in expect.keys() {
+        if !root.join(listed).is_file() {
+            failures.push(format!("{listed}: listed in expect.toml but missing"));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}

@@ -62,9 +62,25 @@ pub fn resolve<T: serde::de::DeserializeOwned>(
     let paper = paper_flag(&table).map_err(|e| Error::file(origin, e))?;
     let preset = preset(paper, &table);
     fill_absent(&mut table, preset);
-    toml::Value::Table(table)
-        .try_into()
-        .map_err(|e| Error::file(origin, e))
+    from_table(table).map_err(|e| Error::file(origin, e))
+}
+
+/// `T` from a TOML table; a refusal names the dotted key it is about (`config field
+/// `iterations`: invalid value: integer `-5`, expected u64`), which a table (unlike TOML
+/// text) cannot point at by line.
+pub fn from_table<T: serde::de::DeserializeOwned>(
+    table: toml::Table,
+) -> std::result::Result<T, String> {
+    serde_path_to_error::deserialize(toml::Value::Table(table)).map_err(|e| {
+        let path = e.path().to_string();
+        let inner = e.into_inner();
+        let message = inner.message().trim_end().to_string();
+        if path.is_empty() || path == "." {
+            message
+        } else {
+            format!("config field `{path}`: {message}")
+        }
+    })
 }
 
 /// A resolved table written before recipes existed has no `paper` key, and its absent

@@ -261,15 +261,9 @@ pub fn stats(kind: &str) -> Result<&'static [&'static str]> {
 fn parse<C: Params>(t: &toml::Table) -> Result<C> {
     let mut full = to_table(&C::default())?;
     overlay(&mut full, t);
-    let c: C = toml::Value::Table(full)
-        .try_into()
-        .map_err(|e: toml::de::Error| {
-            Error::InvalidInput(format!(
-                "config section `strategy` ({}): {}",
-                C::KIND,
-                e.message()
-            ))
-        })?;
+    let c: C = crate::recipe::from_table(full).map_err(|e| {
+        Error::InvalidInput(format!("config section `strategy` ({}): {e}", C::KIND))
+    })?;
     c.validate()?;
     Ok(c)
 }

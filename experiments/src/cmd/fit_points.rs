@@ -72,8 +72,8 @@ pub struct Args {
     /// fits it finished are read back, the others run.
     #[arg(long, conflicts_with = "data")]
     pub resume: Option<PathBuf>,
-    /// EM iterations at depth D.
-    #[arg(long, default_value_t = 300)]
+    /// EM iterations at depth D (300, 3e2, 1K).
+    #[arg(long, visible_alias = "iters", default_value = "300", value_parser = count)]
     pub iterations: usize,
     /// Minibatch size N′ (0 = full batch).
     #[arg(long, default_value_t = 500)]
@@ -244,4 +244,10 @@ fn flag_names(e: anyhow::Error) -> anyhow::Error {
         }
     }
     anyhow::anyhow!(out)
+}
+
+/// A count as [`ifslab::budget::parse_count`] reads it (`300`, `3e2`, `1K`), as a `usize`.
+fn count(text: &str) -> Result<usize, String> {
+    let n = ifslab::budget::parse_count(text)?;
+    usize::try_from(n).map_err(|_| format!("`{text}` is too large a count"))
 }

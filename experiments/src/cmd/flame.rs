@@ -73,8 +73,8 @@ pub struct LearnArgs {
     /// Side of the final render beside the training-size one (0: none). [default: 400]
     #[arg(long)]
     pub eval_size: Option<usize>,
-    /// Iterations. [default: 150]
-    #[arg(long)]
+    /// Iterations (150, 1.5e2, 1K). [default: 150]
+    #[arg(long, visible_alias = "iterations", value_parser = ifslab::budget::parse_count)]
     pub iters: Option<u64>,
     /// `adam`: Adam with per-group rates (half the paper's MSE at Fig. 4's budget,
     /// paper_repro/fractal_flames); `gd`: the paper's plain gradient descent with the

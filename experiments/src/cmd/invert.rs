@@ -31,7 +31,7 @@ pub struct Args {
     #[arg(long, default_value_t = 3)]
     pub maps: usize,
     /// Optimisation iterations (1000, 1e3, 1K). [default: 1000; --paper: 2000]
-    #[arg(long, value_parser = ifslab::budget::parse_count)]
+    #[arg(long, visible_alias = "iterations", value_parser = ifslab::budget::parse_count)]
     pub iters: Option<u64>,
     /// The chaotic-splatting paper's recipe instead of ifslab's: a random (Anderson–Farrell)
     /// start, the hybrid with its hot annealing, σ fixed, 2000 iterations of 2000 × 250

@@ -69,8 +69,8 @@ pub struct FitArgs {
     /// 2×2 poolings of the multi-scale MSE after the full-resolution level. [default: 4]
     #[arg(long)]
     pub levels: Option<usize>,
-    /// Iterations. [default: 300]
-    #[arg(long)]
+    /// Iterations (300, 3e2, 1K). [default: 300]
+    #[arg(long, visible_alias = "iters", value_parser = ifslab::budget::parse_count)]
     pub iterations: Option<u64>,
     /// Adam's learning rate (control points live in the unit square). [default: 2e-3]
     #[arg(long)]

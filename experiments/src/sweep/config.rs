@@ -269,6 +269,21 @@ impl AxisConfig {
         {
             bail!("{} has an empty `values` list", what());
         }
+        // Two values with one label would be one row in every report.
+        let given: Vec<&str> = self
+            .value
+            .iter()
+            .map(|v| v.label.as_str())
+            .chain(self.labels.iter().flatten().map(String::as_str))
+            .collect();
+        for (i, l) in given.iter().enumerate() {
+            if given[..i].contains(l) {
+                bail!(
+                    "{} has the label `{l}` twice: each value needs a label of its own",
+                    what()
+                );
+            }
+        }
         if let Some(labels) = &self.labels {
             let n = self.values.as_ref().map_or(0, Vec::len);
             if labels.len() != n {

@@ -272,6 +272,11 @@ pub fn run(
         );
     }
     let data = load_data(cfg)?;
+    // The fits' work, before the folder is made.
+    if cfg.sweep_pool.is_empty() {
+        cfg.em_config(cfg.seed, cfg.pool)
+            .check_work(data.train.len(), cfg.runs)?;
+    }
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     if !resume {
         ifslab::io::write_atomic(&config_path, resolved.to_toml()?.as_bytes())?;

@@ -138,7 +138,61 @@ pub fn code_count(k: usize, depth: usize) -> usize {
     n
 }
 
+/// Point × code evaluations (an E-step's unit of work) one thread does per second: an
+/// optimistic figure (the suite's fits measured 1–3 × 10⁸), so that only runs that would
+/// clearly take too long are refused.
+pub const EVALS_PER_SECOND_PER_THREAD: f64 = 1e9;
+
 impl EmConfig {
+    /// The point × code evaluations one fit to `n` training points plans: the pool's
+    /// candidates at the pre-selection depth, the main run at depth D (a minibatch or all
+    /// points per iteration), and each re-orientation search (every component, every
+    /// orientation, the evaluation points).
+    pub fn work(&self, n: usize) -> f64 {
+        let batch = if self.batch_size == 0 {
+            n
+        } else {
+            self.batch_size.min(n)
+        } as f64;
+        let codes = code_count(self.components, self.depth) as f64;
+        let pre_codes = code_count(self.components, self.preselect_depth.min(self.depth)) as f64;
+        let pool = if self.pool > 1 {
+            self.pool as f64 * self.preselect_iterations as f64 * batch * pre_codes
+        } else {
+            0.0
+        };
+        let main = self.iterations as f64 * batch * codes;
+        let eval = if self.eval_points == 0 {
+            n
+        } else {
+            self.eval_points.min(n)
+        } as f64;
+        let searches = if self.reorient.enabled() && self.reorient.every > 0 {
+            (self.iterations / self.reorient.every) as f64
+        } else {
+            0.0
+        };
+        let reorient =
+            searches * self.components as f64 * self.reorient.rotations as f64 * eval * codes;
+        pool + main + reorient
+    }
+
+    /// Refuses `fits` fits to `n` points whose [`work`](Self::work) would take longer than
+    /// the work budget ([`ifslab::budget::check_work`]) on this process's threads.
+    pub fn check_work(&self, n: usize, fits: usize) -> Result<()> {
+        let threads = rayon::current_num_threads().max(1) as f64;
+        let work = self.work(n) * fits.max(1) as f64;
+        Ok(ifslab::budget::check_work(
+            work / (EVALS_PER_SECOND_PER_THREAD * threads),
+            &format!(
+                "{work:.1e} point × code evaluations ({fits} fit(s) of {} iterations, K = {}, depth \
+                 {}) at ~{:.0e} per second per thread on {threads} threads",
+                self.iterations, self.components, self.depth, EVALS_PER_SECOND_PER_THREAD
+            ),
+            "the iterations, the depth, the pool or the points",
+        )?)
+    }
+
     /// Checks every field; the error names the one to change.
     pub fn validate(&self) -> Result<()> {
         if self.components == 0 {

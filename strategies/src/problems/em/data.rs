@@ -400,6 +400,30 @@ pub fn parse_text(text: &str, origin: &Path) -> Result<PointSet> {
 
 const NPY_MAGIC: &[u8] = b"\x93NUMPY";
 
+/// The deepest bracket nesting a `.npy` header may have.
+const MAX_NPY_HEADER_DEPTH: usize = 8;
+
+/// The header text of a `.npy` buffer that starts with the magic bytes: its length is a
+/// little-endian u16 after the version bytes in format 1, a u32 in formats 2 and 3.
+fn npy_header(bytes: &[u8]) -> std::result::Result<&[u8], String> {
+    let short = || "the .npy header is cut short".to_string();
+    let (len, start) = match bytes.get(6) {
+        Some(1) => {
+            let b = bytes.get(8..10).ok_or_else(short)?;
+            (u16::from_le_bytes([b[0], b[1]]) as usize, 10usize)
+        }
+        Some(2 | 3) => {
+            let b = bytes.get(8..12).ok_or_else(short)?;
+            (u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize, 12)
+        }
+        Some(v) => return Err(format!("unknown .npy format version {v}")),
+        None => return Err(short()),
+    };
+    bytes
+        .get(start..start.saturating_add(len))
+        .ok_or_else(short)
+}
+
 /// Parses a `.npy` buffer (any format version `npyz` reads); `origin` names the file in errors.
 pub fn parse_npy(bytes: &[u8], origin: &Path) -> Result<PointSet> {
     use npyz::{DType, Order, TypeChar};
@@ -408,6 +432,26 @@ pub fn parse_npy(bytes: &[u8], origin: &Path) -> Result<PointSet> {
         return Err(bad(
             "not a NumPy .npy file (missing the \\x93NUMPY magic bytes)".into(),
         ));
+    }
+    // A header nested deeper than any array's (a plain array's is a flat dict holding one
+    // tuple; a structured dtype adds a list of tuples) is refused before the header parser
+    // sees it: brackets nested a hundred deep took it minutes (a fuzz finding).
+    let header = npy_header(bytes).map_err(&bad)?;
+    let mut depth = 0usize;
+    for &c in header {
+        match c {
+            b'{' | b'(' | b'[' => {
+                depth += 1;
+                if depth > MAX_NPY_HEADER_DEPTH {
+                    return Err(bad(format!(
+                        "the .npy header nests brackets more than {MAX_NPY_HEADER_DEPTH} deep; \
+                         it is not a header NumPy writes"
+                    )));
+                }
+            }
+            b'}' | b')' | b']' => depth = depth.saturating_sub(1),
+            _ => {}
+        }
     }
     let file =
         npyz::NpyFile::new(bytes).map_err(|e| bad(format!("cannot read the .npy header: {e}")))?;

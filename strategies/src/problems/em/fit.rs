@@ -92,6 +92,7 @@ pub fn fit(
 ) -> Result<EmFit> {
     cfg.validate()?;
     check_data(data, heldout, cfg)?;
+    cfg.check_work(data.len(), 1)?;
     let eval = evaluation_points(data, cfg);
     let rotations = if cfg.reorient.enabled() {
         orientation_set(

@@ -511,9 +511,28 @@ impl FlameLearnConfig {
             ));
         }
         self.strategy.validate()?;
+        // The run's work: every iteration draws (and differentiates) every layer's samples.
+        let s = &self.sampler;
+        let samples = s.trajectories as f64 * (s.steps + s.warmup) as f64;
+        let layers = self.flames.len() as f64;
+        let threads = rayon::current_num_threads().max(1) as f64;
+        ifslab::budget::check_work(
+            self.iterations as f64 * layers * samples / (SAMPLES_PER_SECOND_PER_THREAD * threads),
+            &format!(
+                "{} iterations of {layers} layer(s) × {samples:.0e} samples at \
+                 ~{SAMPLES_PER_SECOND_PER_THREAD:.0e} samples/s per thread on {threads} threads",
+                self.iterations
+            ),
+            "`iterations` (--iters) or `sampler.trajectories` / `sampler.steps`",
+        )?;
         Ok(())
     }
 }
+
+/// Samples one thread draws and differentiates per second while learning a flame: an
+/// optimistic figure (the learnable-flame benchmark measures ~1.5 × 10⁷), so only runs that
+/// would clearly take too long are refused.
+pub const SAMPLES_PER_SECOND_PER_THREAD: f64 = 1e8;
 
 /// The mean colour of the outermost ring of pixels of a `size²` RGB target (white for an
 /// empty or mis-sized one).

@@ -75,6 +75,11 @@ pub struct ModelConfig {
     /// is then within the start's reach). Written only when on.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub em_reflections: bool,
+    /// Rounds of [`moment_refine`](crate::problems::image::init::moment_refine) after the
+    /// EM start: its similitudes become affine maps matching each piece's second moments
+    /// (0: off). Written only when on.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub em_affine: usize,
     /// How the chaos game of the differentiable renderer picks maps: `uniform` (the
     /// chaotic-splatting paper's generator) or `determinant` (∝ |det M|, no floor: Learning
     /// Fractals). Evaluation renders always use |det| with a 1% floor.
@@ -91,6 +96,10 @@ pub enum MapProbabilities {
     Uniform,
     /// Proportional to |det M| (uniform if every determinant is 0).
     Determinant,
+}
+
+fn is_zero(v: &usize) -> bool {
+    *v == 0
 }
 
 impl MapProbabilities {
@@ -130,6 +139,7 @@ impl Default for ModelConfig {
             init_code: None,
             init_noise: 0.0,
             em_reflections: false,
+            em_affine: 0,
             probabilities: MapProbabilities::Uniform,
         }
     }
@@ -478,8 +488,18 @@ impl InversionConfig {
     pub fn preset(paper: bool, table: &toml::Table) -> toml::Table {
         use crate::optim::hybrid::ColdHybridConfig;
         use crate::recipe::{get_dotted, table_of};
+        // The recipe's strategy where the config names no kind (a config that only tunes
+        // the default strategy's parameters keeps that strategy).
+        let named = table
+            .get("strategy")
+            .and_then(|s| s.as_table())
+            .is_some_and(|s| s.contains_key("kind"));
         if paper {
-            return table_of([("model.init", "random".into())]);
+            let mut preset = table_of([("model.init", "random".into())]);
+            if !named && table.contains_key("strategy") {
+                preset.extend(table_of([("strategy.kind", HybridConfig::KIND.into())]));
+            }
+            return preset;
         }
         let init = get_dotted(table, "model.init")
             .and_then(|v| v.as_str())
@@ -495,8 +515,7 @@ impl InversionConfig {
             ("model.em_reflections", true.into()),
             ("renderer.sigma_final", DEFAULT_SIGMA_FINAL.into()),
         ]);
-        // A strategy is chosen whole: the recipe's only where the config names none.
-        if !table.contains_key("strategy") {
+        if !named {
             let kind = if init == "em" {
                 ColdHybridConfig::KIND
             } else {
@@ -768,6 +787,17 @@ mod tests {
         )
         .unwrap();
         assert_eq!(r.strategy.name(), "hybrid");
+        // A config that tunes the recipe's strategy without naming it keeps it, under
+        // either recipe.
+        for (paper, kind) in [("", "cold_hybrid"), ("paper = true\n", "hybrid")] {
+            let tuned = InversionConfig::from_toml(
+                &format!("{paper}{MINIMAL}[strategy.adam]\nlr = 0.03\n"),
+                Path::new("c.toml"),
+            )
+            .unwrap();
+            assert_eq!(tuned.strategy.name(), kind);
+            assert!(tuned.to_toml().contains("lr = 0.03"), "{}", tuned.to_toml());
+        }
     }
 
     #[test]

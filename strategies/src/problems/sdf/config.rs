@@ -313,9 +313,33 @@ impl SdfConfig {
                 ),
             ));
         }
+        // The fit's work: every step draws (and differentiates) every pixel, and every
+        // primitive moves; the best-of-starts probes come first.
+        let probes = if self.init.kind == SdfInit::Best {
+            5 * crate::problems::sdf::run::PROBE_STEPS
+        } else {
+            0
+        };
+        let steps = self.iterations.saturating_add(probes) as f64;
+        let per_step = (self.size * self.size) as f64 + leaves.unwrap_or(usize::MAX) as f64;
+        let threads = rayon::current_num_threads().max(1) as f64;
+        ifslab::budget::check_work(
+            steps * per_step / (PIXELS_PER_SECOND_PER_THREAD * threads),
+            &format!(
+                "{steps} steps over {}² pixels at ~{PIXELS_PER_SECOND_PER_THREAD:.0e} pixels/s \
+                 per thread on {threads} threads",
+                self.size
+            ),
+            "`iterations` (--iters) or `size` (--size)",
+        )?;
         Ok(())
     }
 }
+
+/// Pixels (or primitives) one thread draws and differentiates per second in a fit: an
+/// optimistic figure (default fits measure ~4 × 10⁶), so only runs that would clearly take
+/// too long are refused.
+pub const PIXELS_PER_SECOND_PER_THREAD: f64 = 2e7;
 
 #[cfg(test)]
 mod tests {

@@ -1,0 +1,4 @@
+#![no_main]
+//! `pattern` input: see `ifslab_fuzz::check`.
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| ifslab_fuzz::check("pattern", data));
