@@ -8,8 +8,9 @@ use std::process::Command;
 mod common;
 use common::ifslab;
 use ifslab_experiments::progress::{Progress, Silent};
-use ifslab_experiments::sweep::collect::{ReportOptions, RunState, collect, write_report};
+use ifslab_experiments::sweep::collect::{RunState, collect};
 use ifslab_experiments::sweep::local::{RECORD_FILE, RunRecord, partial_dir, run_dir};
+use ifslab_experiments::sweep::report::{ReportOptions, write_report};
 use ifslab_experiments::sweep::{
     Plan, PlannedRun, RunStatus, RunnerOptions, Shard, SweepConfig, run_sweep, slurm,
 };

@@ -12,12 +12,15 @@
 //!   clouds of any dimension), [`problems::fractal_coding`] (fractal-coding texture
 //!   upsampling);
 //! - [`recipe`]: ifslab's defaults and the papers' recipes (`paper = true`), as presets merged
-//!   into configs where they leave keys out.
+//!   into configs where they leave keys out;
+//! - [`plugins`]: strategies and map families added from another crate, without editing this
+//!   one.
 #![warn(missing_docs)]
 
 pub mod driver;
 pub mod error;
 pub mod optim;
+pub mod plugins;
 pub mod problems;
 pub mod recipe;
 pub mod registry;

@@ -8,10 +8,18 @@
 //! logs the statistics the strategy reports (annealing acceptances, noise levels, …) as
 //! columns of `log.csv`.
 //!
-//! Adding a strategy: a folder `src/<name>/` with its `Params` type and its `Solver`, and
-//! one line in [`strategies`]. Gradient strategies need [`Differentiable`]; value-only ones
+//! Adding a strategy to this crate: a folder `src/<name>/` with its `Params` type and its
+//! `Solver`, and one line in [`builtin_strategies`]. From another crate, without editing
+//! this one: implement [`StrategyPlugin`] and call
+//! [`register_strategy`](crate::plugins::register_strategy) once before the run (or
+//! [`register_for`] for a problem type of your own); `experiments/examples/plugin.rs` does
+//! it and runs the result through `ifslab run`'s library call. Gradient strategies need [`Differentiable`]; value-only ones
 //! (annealing today, evolutionary ones tomorrow) need only [`Anneal`]'s cost, but every
 //! problem in the registry offers both.
+
+use std::any::{Any, TypeId};
+use std::collections::HashMap;
+use std::sync::{LazyLock, RwLock};
 
 use argmin::core::{Error as ArgminError, KV, Problem, Solver, TerminationStatus};
 use serde::de::{DeserializeOwned, Deserializer};
@@ -197,8 +205,55 @@ impl<P: StrategyProblem> StrategyEntry<P> {
     }
 }
 
-/// Every strategy a run can name, for problem type `P`: **one line per strategy**.
+/// Every strategy a run can name, for problem type `P`: this crate's
+/// ([`builtin_strategies`]) and then those registered for `P` from outside ([`register_for`]).
 pub fn strategies<P: StrategyProblem>() -> Vec<StrategyEntry<P>> {
+    let mut all = builtin_strategies::<P>();
+    let registered = REGISTERED.read().unwrap_or_else(|e| e.into_inner());
+    if let Some(list) = registered.get(&TypeId::of::<P>()) {
+        all.extend(
+            list.iter()
+                .filter_map(|f| f.downcast_ref::<fn() -> StrategyEntry<P>>())
+                .map(|f| f()),
+        );
+    }
+    all
+}
+
+/// A strategy defined outside this crate: its entry for any problem type (usually one line,
+/// `StrategyEntry::new(|c: MyConfig, run| MySolver::new(c, run.iterations, run.seed))`).
+pub trait StrategyPlugin: 'static {
+    /// The strategy's entry for problem type `P`.
+    fn entry<P: StrategyProblem>() -> StrategyEntry<P>;
+}
+
+/// Strategies registered from outside, per problem type: `fn() -> StrategyEntry<P>` behind
+/// `Any`, keyed by `P`'s type.
+type Registered = HashMap<TypeId, Vec<Box<dyn Any + Send + Sync>>>;
+static REGISTERED: LazyLock<RwLock<Registered>> = LazyLock::new(Default::default);
+
+/// Makes the strategy whose entry `entry` builds available to runs of problem type `P` (and
+/// to config checks when `P` is [`ParamsOnly`]), for the rest of the process. A name that is
+/// taken for `P` is refused.
+pub fn register_for<P: StrategyProblem>(entry: fn() -> StrategyEntry<P>) -> Result<()> {
+    let kind = entry().kind;
+    if strategies::<P>().iter().any(|e| e.kind == kind) {
+        return Err(Error::param(
+            "strategy",
+            format!("a strategy called `{kind}` is already registered"),
+        ));
+    }
+    REGISTERED
+        .write()
+        .unwrap_or_else(|e| e.into_inner())
+        .entry(TypeId::of::<P>())
+        .or_default()
+        .push(Box::new(entry));
+    Ok(())
+}
+
+/// The strategies of this crate, for problem type `P`: **one line per strategy**.
+pub fn builtin_strategies<P: StrategyProblem>() -> Vec<StrategyEntry<P>> {
     vec![
         StrategyEntry::new(|c: HybridConfig, r| Hybrid::new(c, r.iterations, r.seed)),
         StrategyEntry::new(|c: ColdHybridConfig, r| Hybrid::new(c.0, r.iterations, r.seed)),

@@ -3,7 +3,8 @@
 
 use std::path::PathBuf;
 
-use ifslab_experiments::sweep::collect::{ReportOptions, collect, write_report};
+use ifslab_experiments::sweep::collect::collect;
+use ifslab_experiments::sweep::report::{ReportOptions, write_report};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {

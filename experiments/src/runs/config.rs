@@ -11,7 +11,6 @@ use ifslab::loss::lpips::default_lpips_weights_path;
 use ifslab_strategies::problems::flame::FlameLearnConfig;
 use ifslab_strategies::problems::image::InversionConfig;
 use ifslab_strategies::problems::sdf::SdfConfig;
-use ifslab_strategies::recipe;
 use serde::Serialize;
 
 use crate::progress::Progress;
@@ -21,11 +20,8 @@ use crate::runs::points::{self, PointsConfig};
 use crate::runs::sdf;
 use crate::runs::texture::{self, TextureConfig};
 
-/// The config key that names the problem a config describes.
-pub const PROBLEM_KEY: &str = "problem";
-
-/// The name of the problem every config without a `problem` key describes.
-pub const DEFAULT_PROBLEM: &str = "image";
+use super::table::set_dotted;
+pub use super::table::{DEFAULT_PROBLEM, PROBLEM_KEY};
 
 /// A validated run config of any problem.
 #[derive(Clone, Debug, PartialEq)]
@@ -59,10 +55,8 @@ impl RunConfig {
     pub const PROBLEMS: &'static [&'static str] = &["image", "points", "texture", "sdf", "flame"];
 
     /// The problems whose `paper` key only picks the defaults of keys a config leaves out
-    /// ([`ifslab_strategies::recipe`]): their resolved tables spell every choice out, so the
-    /// key takes no part in a run's id. (`points` has its own `paper` switch, which also
-    /// changes values no key spells out, and stays in the id.)
-    pub const HAS_RECIPES: &'static [&'static str] = &["image", "sdf", "flame"];
+    /// ([`super::table::HAS_RECIPES`]).
+    pub const HAS_RECIPES: &'static [&'static str] = super::table::HAS_RECIPES;
 
     /// A config from a parsed TOML table; `origin` (the file it came from) names it in
     /// errors and relative file names in it are read from its folder.
@@ -122,7 +116,7 @@ impl RunConfig {
 
     /// Reads the resolved config a run wrote into its folder (`config.toml`), for resuming,
     /// adopting or slicing that run. A resolved config written before recipes existed has
-    /// no `paper` key and meant the paper's defaults ([`recipe::mark_legacy`]); it is read
+    /// no `paper` key and meant the paper's defaults ([`ifslab_strategies::recipe::mark_legacy`]); it is read
     /// that way, so an old run resumes as it started.
     pub fn load_resolved(path: &Path) -> anyhow::Result<Self> {
         RunConfig::load_resolved_with(path, toml::Table::new())
@@ -131,26 +125,7 @@ impl RunConfig {
     /// [`RunConfig::load_resolved`] with `overrides` (a table of keys, nested tables merged
     /// key by key) applied on top: a resumed run told to go on longer, say.
     pub fn load_resolved_with(path: &Path, overrides: toml::Table) -> anyhow::Result<Self> {
-        let text =
-            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-        let mut table: toml::Table = text
-            .parse()
-            .with_context(|| format!("{} is not valid TOML", path.display()))?;
-        let problem = table
-            .get(PROBLEM_KEY)
-            .and_then(toml::Value::as_str)
-            .unwrap_or(DEFAULT_PROBLEM)
-            .to_owned();
-        if Self::HAS_RECIPES.contains(&problem.as_str()) {
-            recipe::mark_legacy(&mut table);
-        }
-        // A resolved points config writes `reflections` and `trim_outliers` only when they
-        // are on: absent, they were off (and absent from every run made before they existed).
-        if problem == "points" {
-            for key in ["reflections", "trim_outliers"] {
-                table.entry(key).or_insert(toml::Value::Boolean(false));
-            }
-        }
+        let mut table = super::table::read_resolved(path)?;
         merge_into(&mut table, overrides);
         RunConfig::from_table(table, path)
     }
@@ -168,8 +143,7 @@ impl RunConfig {
             .with_context(|| format!("{} is not valid TOML", path.display()))?;
         for o in overrides {
             let (key, value) = parse_override(o)?;
-            crate::sweep::expand::set_dotted(&mut table, &key, value)
-                .with_context(|| format!("applying `--set {o}`"))?;
+            set_dotted(&mut table, &key, value).with_context(|| format!("applying `--set {o}`"))?;
         }
         RunConfig::from_table(table, path)
     }

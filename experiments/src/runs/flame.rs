@@ -153,7 +153,7 @@ pub fn run(
     let t64: Vec<f64> = target.iter().map(|&v| v as f64).collect();
     save_rgb(&dir.join("target.png"), &t64, size)?;
     let done_before = if resume {
-        ifslab_strategies::driver::checkpoint_iteration(dir)?
+        ifslab_strategies::driver::plan::checkpoint_iteration(dir)?
     } else {
         0
     };

@@ -19,6 +19,7 @@ pub mod inversion;
 pub mod landscape;
 pub mod points;
 pub mod sdf;
+pub mod table;
 pub mod texture;
 
 pub use config::{RunConfig, RunReport};

@@ -171,7 +171,7 @@ pub fn run(
     )?;
     let ink: Vec<f64> = target.iter().map(|&v| v as f64).collect();
     let done_before = if resume {
-        ifslab_strategies::driver::checkpoint_iteration(dir)?
+        ifslab_strategies::driver::plan::checkpoint_iteration(dir)?
     } else {
         0
     };

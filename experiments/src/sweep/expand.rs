@@ -10,6 +10,7 @@ use sha2::{Digest, Sha256};
 
 use super::config::{AxisConfig, BaseConfig, SlurmConfig, SweepConfig};
 use crate::runs::RunConfig;
+pub use crate::runs::table::set_dotted;
 
 /// The config key of the output folder: sweeps choose the folder.
 const OUTPUT_KEY: &str = "output";
@@ -328,9 +329,9 @@ pub fn run_id(resolved: &toml::Table, sweep_dir: &Path) -> String {
     // them out: the `paper` key adds nothing to what such a run computes (and runs made
     // before recipes existed keep their ids).
     let problem = t
-        .get(crate::runs::config::PROBLEM_KEY)
+        .get(crate::runs::table::PROBLEM_KEY)
         .and_then(toml::Value::as_str)
-        .unwrap_or(crate::runs::config::DEFAULT_PROBLEM);
+        .unwrap_or(crate::runs::table::DEFAULT_PROBLEM);
     if RunConfig::HAS_RECIPES.contains(&problem) {
         t.remove(ifslab_strategies::recipe::PAPER_KEY);
     }
@@ -523,25 +524,4 @@ pub fn flatten(t: &toml::Table) -> Vec<(String, toml::Value)> {
         }
     }
     out
-}
-
-/// Sets the value at a dotted key, creating the tables on the way.
-pub fn set_dotted(table: &mut toml::Table, key: &str, value: toml::Value) -> anyhow::Result<()> {
-    let parts: Vec<&str> = key.split('.').collect();
-    let (last, path) = parts.split_last().context("an empty config key")?;
-    let mut t = table;
-    for (i, p) in path.iter().enumerate() {
-        let entry = t
-            .entry(p.to_string())
-            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
-        t = match entry {
-            toml::Value::Table(inner) => inner,
-            other => bail!(
-                "cannot set `{key}`: `{}` is {other}, not a table",
-                parts[..=i].join(".")
-            ),
-        };
-    }
-    t.insert(last.to_string(), value);
-    Ok(())
 }

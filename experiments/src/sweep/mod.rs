@@ -20,6 +20,7 @@ pub mod config;
 pub mod expand;
 pub mod local;
 pub mod paired;
+pub mod report;
 pub mod shard;
 pub mod slurm;
 

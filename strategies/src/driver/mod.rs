@@ -14,11 +14,7 @@ pub mod plan;
 
 pub use checkpoint::JsonCheckpoint;
 pub use log::CsvLog;
-pub use plan::{
-    CHECKPOINT_FILE, LOG_FILE, RunPlan, START_FILE, checkpoint_iteration, ensure_new_run_dir,
-};
 
-use argmin::core::observers::Observe;
 use argmin::core::{IterState, KV, KvValue};
 
 use std::fmt::Debug;
@@ -65,65 +61,6 @@ pub fn kv_of(eval: &Evaluation) -> KV {
         kv.insert(*name, KvValue::Float(*v));
     }
     kv
-}
-
-/// Lets a boxed observer (a run's log, checkpoint and progress) be handed to argmin's
-/// executor, which takes observers by value.
-struct Boxed(pub Box<dyn Observe<GradState> + Send>);
-
-impl Observe<GradState> for Boxed {
-    fn observe_init(
-        &mut self,
-        name: &str,
-        state: &GradState,
-        kv: &KV,
-    ) -> std::result::Result<(), argmin::core::Error> {
-        self.0.observe_init(name, state, kv)
-    }
-    fn observe_iter(
-        &mut self,
-        state: &GradState,
-        kv: &KV,
-    ) -> std::result::Result<(), argmin::core::Error> {
-        self.0.observe_iter(state, kv)
-    }
-    fn observe_final(&mut self, state: &GradState) -> std::result::Result<(), argmin::core::Error> {
-        self.0.observe_final(state)
-    }
-}
-
-/// Runs `solver` on `problem` from `theta0` (empty when resuming: the checkpoint holds θ) for
-/// `iterations`, checkpointing through `ckpt`, logging to `log` and reporting to
-/// `observers`: the problem back (argmin moves it into the executor) and the final state.
-/// An error of ours raised inside an iteration comes back as itself.
-pub fn execute<P: crate::registry::StrategyProblem>(
-    problem: P,
-    solver: crate::registry::AnySolver<P>,
-    theta0: Vec<f64>,
-    iterations: u64,
-    ckpt: JsonCheckpoint,
-    log: CsvLog,
-    observers: Vec<Box<dyn Observe<GradState> + Send>>,
-) -> Result<(P, GradState)> {
-    use argmin::core::Executor;
-    use argmin::core::observers::ObserverMode;
-    let mut exec = Executor::new(problem, solver)
-        .configure(|s| s.param(theta0).max_iters(iterations))
-        .checkpointing(ckpt)
-        .add_observer(log, ObserverMode::Always);
-    for o in observers {
-        exec = exec.add_observer(Boxed(o), ObserverMode::Always);
-    }
-    let res = exec.run().map_err(|e| match e.downcast::<crate::Error>() {
-        Ok(ours) => ours,
-        Err(other) => crate::Error::Numerical(format!("optimisation failed: {other}")),
-    })?;
-    let state = res.state().clone();
-    let problem = res
-        .problem
-        .problem
-        .ok_or_else(|| crate::Error::Numerical("the executor lost the problem".into()))?;
-    Ok((problem, state))
 }
 
 /// Converts the strategies' error into argmin's.

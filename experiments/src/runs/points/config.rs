@@ -10,7 +10,7 @@ use ifslab_strategies::problems::em::{
 };
 use serde::{Deserialize, Serialize};
 
-use crate::runs::config::PROBLEM_KEY;
+use crate::runs::table::PROBLEM_KEY;
 
 /// How pre-selection candidates are trained.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]

@@ -38,7 +38,6 @@ use serde_json::json;
 
 use crate::codes::resolve_code;
 use crate::progress::Progress;
-use crate::runs::config::RunConfig;
 use crate::runs::inversion::CONFIG_FILE;
 pub use config::{PointsConfig, PreselectSchedule};
 use truth::Truth;
@@ -245,15 +244,20 @@ pub fn run(
             dir.display()
         );
         // Read as a resolved config: keys it leaves out when off read as off.
-        let RunConfig::Points(stored) = RunConfig::load_resolved(&config_path)? else {
+        let mut table = crate::runs::table::read_resolved(&config_path)?;
+        if crate::runs::table::problem_of(&table) != "points" {
             bail!(
                 "{} is not the config of a points run",
                 config_path.display()
             );
-        };
+        }
+        table.remove(crate::runs::table::PROBLEM_KEY);
+        let text = toml::to_string(&table).context("re-serialising the config")?;
+        let stored = PointsConfig::from_toml(&text, &config_path)?
+            .relative_to(config_path.parent().unwrap_or(Path::new("")));
         let same = PointsConfig {
             output: None,
-            ..*stored
+            ..stored
         } == PointsConfig {
             output: None,
             ..resolved.clone()

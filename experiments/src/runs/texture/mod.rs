@@ -29,8 +29,8 @@ use ifslab_strategies::problems::fractal_coding::{
 use serde::{Deserialize, Serialize};
 
 use crate::progress::Progress;
-use crate::runs::config::PROBLEM_KEY;
 use crate::runs::inversion::CONFIG_FILE;
+use crate::runs::table::PROBLEM_KEY;
 pub use config::{CandidateCap, Settings, TextureConfig};
 
 /// Loads a source texture with a message that says what is accepted.

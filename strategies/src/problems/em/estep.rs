@@ -219,6 +219,21 @@ pub fn expectation(model: &EmModel, table: &CodeTable, points: &PointSet) -> Sta
     total
 }
 
+/// The model's likelihood, written beside the E-step that computes it.
+impl EmModel {
+    /// Per-point log-densities log p(x_i) (nats), in point order.
+    pub fn log_densities(&self, points: &PointSet) -> crate::error::Result<Vec<f64>> {
+        self.check_points(points)?;
+        let table = self.code_table();
+        Ok(log_densities(self, &table, points))
+    }
+
+    /// Total log-likelihood Σ_i log p(x_i) (nats).
+    pub fn log_likelihood(&self, points: &PointSet) -> crate::error::Result<f64> {
+        Ok(self.log_densities(points)?.iter().sum())
+    }
+}
+
 /// `ln p(x_i)` for every point (nats, data space), in point order.
 pub fn log_densities(model: &EmModel, table: &CodeTable, points: &PointSet) -> Vec<f64> {
     let h = model.dim();

@@ -256,20 +256,6 @@ impl EmModel {
             .collect()
     }
 
-    /// Per-point log-densities log p(x_i) (nats), in point order.
-    pub fn log_densities(&self, points: &PointSet) -> Result<Vec<f64>> {
-        self.check_points(points)?;
-        let table = self.code_table();
-        Ok(crate::problems::em::estep::log_densities(
-            self, &table, points,
-        ))
-    }
-
-    /// Total log-likelihood Σ_i log p(x_i) (nats).
-    pub fn log_likelihood(&self, points: &PointSet) -> Result<f64> {
-        Ok(self.log_densities(points)?.iter().sum())
-    }
-
     /// Mean log-likelihood per point (nats).
     pub fn mean_log_likelihood(&self, points: &PointSet) -> Result<f64> {
         if points.is_empty() {

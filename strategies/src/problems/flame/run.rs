@@ -8,7 +8,8 @@ use argmin::core::State;
 use argmin::core::observers::Observe;
 use ifslab::model::flame::learnable::{FlameStack, LearnableFlame};
 
-use crate::driver::{GradState, RunPlan, START_FILE};
+use crate::driver::GradState;
+use crate::driver::plan::{RunPlan, START_FILE};
 use crate::error::{Error, Result};
 use crate::problems::flame::config::FlameLearnConfig;
 use crate::problems::flame::problem::{FLAME_TERMS, FlameProblem};

@@ -25,7 +25,8 @@ pub use config::{InitKind, InversionConfig, StrategyConfig, TargetConfig};
 pub use init::initial_theta;
 pub use landscape::{Directions, Landscape, LandscapeConfig, landscape, slice};
 pub use model::{
-    AffineModel, AnyModel, DrawOptions, ImageModel, MODELS, SimilitudeModel, find_model,
+    AffineModel, AnyModel, DrawOptions, ImageModel, MODELS, ModelEntry, SimilitudeModel,
+    find_model, models, register_model,
 };
 pub use problem::ImageProblem;
 pub use run::{InversionOutcome, SELECTION_STREAMS, Selection, ensure_new_run_dir, run_inversion};

@@ -19,8 +19,10 @@ use ifslab::model::diff_map::{AffinePart, Similitude2, flat_params};
 use ifslab::model::{Affine2, Parameterisation};
 use ifslab::render::splat::{self, SplatConfig, SplatOp};
 
+use ifslab::model::ParamKind;
+use serde::{Deserialize, Serialize};
+
 use crate::error::{Error, Result};
-use crate::problems::image::config::ModelConfig;
 
 /// θ ↔ maps of type [`ImageModel::Map`]: what the image problem fits.
 pub trait ImageModel: Send + Sync + 'static {
@@ -284,6 +286,111 @@ impl ImageModel for SimilitudeModel {
     }
 }
 
+/// The model: which map type, how many maps, how θ is parameterised, how it starts.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ModelConfig {
+    /// The map type: a name in [`models`](crate::problems::image::models) (`affine`, the
+    /// default; `similitude`).
+    pub family: String,
+    /// Number of maps.
+    pub maps: usize,
+    /// Parameterisation of θ (affine maps).
+    pub parameterisation: ParamKind,
+    /// How the initial code is chosen (random or em) when `init_code` is not given.
+    pub init: InitKind,
+    /// Seed of the initial code (Anderson–Farrell sampler, EM); default: the run's seed.
+    pub init_seed: Option<u64>,
+    /// Start from this code instead (a code file or built-in name; it must have `maps` maps).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub init_code: Option<String>,
+    /// Standard deviation of Gaussian noise added to the initial θ.
+    pub init_noise: f64,
+    /// Let the EM start's similitudes reflect as well as rotate (a code whose maps mirror
+    /// is then within the start's reach). Written only when on.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub em_reflections: bool,
+    /// Rounds of [`moment_refine`](crate::problems::image::init::moment_refine) after the
+    /// EM start: its similitudes become affine maps matching each piece's second moments
+    /// (0: off). Written only when on.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub em_affine: usize,
+    /// How the chaos game of the differentiable renderer picks maps: `uniform` (the
+    /// chaotic-splatting paper's generator) or `determinant` (∝ |det M|, no floor: Learning
+    /// Fractals). Evaluation renders always use |det| with a 1% floor.
+    #[serde(skip_serializing_if = "MapProbabilities::is_uniform")]
+    pub probabilities: MapProbabilities,
+}
+
+/// How the differentiable renderer's chaos game picks maps.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MapProbabilities {
+    /// Every map equally likely.
+    #[default]
+    Uniform,
+    /// Proportional to |det M| (uniform if every determinant is 0).
+    Determinant,
+}
+
+fn is_zero(v: &usize) -> bool {
+    *v == 0
+}
+
+impl MapProbabilities {
+    fn is_uniform(&self) -> bool {
+        *self == MapProbabilities::Uniform
+    }
+}
+
+impl ModelConfig {
+    /// The model this config names (its `family`, with its `parameterisation`).
+    pub fn build(&self) -> Result<Box<dyn crate::problems::image::AnyModel>> {
+        let entry = crate::problems::image::find_model(&self.family)?;
+        // Only affine maps have parameterisations; a non-default one elsewhere would be
+        // silently ignored, so it is refused.
+        if self.family != "affine"
+            && self.parameterisation != ModelConfig::default().parameterisation
+        {
+            return Err(Error::InvalidInput(format!(
+                "`parameterisation = \"{}\"` applies to affine maps; family `{}` has its own \
+                 (remove the key)",
+                self.parameterisation.build().name(),
+                self.family
+            )));
+        }
+        Ok((entry.build)(self))
+    }
+}
+
+impl Default for ModelConfig {
+    fn default() -> Self {
+        ModelConfig {
+            family: "affine".into(),
+            maps: 3,
+            parameterisation: ParamKind::Svd,
+            init: InitKind::Random,
+            init_seed: None,
+            init_code: None,
+            init_noise: 0.0,
+            em_reflections: false,
+            em_affine: 0,
+            probabilities: MapProbabilities::Uniform,
+        }
+    }
+}
+
+/// How the initial code is chosen when no `init_code` is given.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum InitKind {
+    /// An Anderson–Farrell random code (the paper's start).
+    Random,
+    /// EM on points sampled from the target image (the reliable start).
+    #[default]
+    Em,
+}
+
 /// One model family a config can name.
 pub struct ModelEntry {
     /// Its name in `[model] family`.
@@ -309,12 +416,41 @@ pub const MODELS: &[ModelEntry] = &[
     },
 ];
 
+/// Model families registered from outside this crate ([`register_model`]).
+static REGISTERED: std::sync::RwLock<Vec<&'static ModelEntry>> = std::sync::RwLock::new(Vec::new());
+
+/// Every model family a config can name: [`MODELS`], then the registered ones.
+pub fn models() -> Vec<&'static ModelEntry> {
+    let registered = REGISTERED.read().unwrap_or_else(|e| e.into_inner());
+    MODELS.iter().chain(registered.iter().copied()).collect()
+}
+
+/// Makes a model family defined outside this crate (its [`ImageModel`] behind
+/// `build`) available to `[model] family = "…"` for the rest of the process. A name that
+/// is taken is refused.
+pub fn register_model(entry: ModelEntry) -> Result<()> {
+    if models().iter().any(|m| m.name == entry.name) {
+        return Err(Error::InvalidInput(format!(
+            "a model family called `{}` is already registered",
+            entry.name
+        )));
+    }
+    // Registered once per process and kept to its end: a 'static entry like MODELS'.
+    let entry: &'static ModelEntry = Box::leak(Box::new(entry));
+    REGISTERED
+        .write()
+        .unwrap_or_else(|e| e.into_inner())
+        .push(entry);
+    Ok(())
+}
+
 /// The entry named `name`, or an error listing the known ones.
 pub fn find_model(name: &str) -> Result<&'static ModelEntry> {
-    MODELS.iter().find(|m| m.name == name).ok_or_else(|| {
+    let all = models();
+    all.iter().find(|m| m.name == name).copied().ok_or_else(|| {
         Error::InvalidInput(format!(
             "unknown model family `{name}` (known: {})",
-            MODELS.iter().map(|m| m.name).collect::<Vec<_>>().join(", ")
+            all.iter().map(|m| m.name).collect::<Vec<_>>().join(", ")
         ))
     })
 }

@@ -8,7 +8,8 @@ use argmin::core::State;
 use argmin::core::observers::Observe;
 use ifslab::model::{Affine2, IfsCode};
 
-use crate::driver::{GradState, RunPlan};
+use crate::driver::GradState;
+use crate::driver::plan::RunPlan;
 use crate::error::{Error, Result};
 use crate::problems::image::config::InversionConfig;
 use crate::problems::image::init::initial_theta;

@@ -316,7 +316,7 @@ impl SdfConfig {
         // The fit's work: every step draws (and differentiates) every pixel, and every
         // primitive moves; the best-of-starts probes come first.
         let probes = if self.init.kind == SdfInit::Best {
-            5 * crate::problems::sdf::run::PROBE_STEPS
+            5 * crate::problems::sdf::init::PROBE_STEPS
         } else {
             0
         };

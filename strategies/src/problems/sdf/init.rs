@@ -15,6 +15,10 @@ use rand_xoshiro::Xoshiro256PlusPlus;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
+
+/// Adam steps each candidate of [`SdfInit::Best`] is followed for (at the schedule's first,
+/// widest σ) before they are compared (`best_start` in `run.rs`).
+pub const PROBE_STEPS: u64 = 40;
 use crate::problems::sdf::target::{INK, best_fit_line};
 
 /// How the control points start.

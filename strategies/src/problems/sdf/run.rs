@@ -8,10 +8,11 @@ use argmin::core::State;
 use argmin::core::observers::Observe;
 use ifslab::render::sdf::SdfView;
 
-use crate::driver::{GradState, RunPlan, START_FILE};
+use crate::driver::GradState;
+use crate::driver::plan::{RunPlan, START_FILE};
 use crate::error::{Error, Result};
 use crate::problems::sdf::config::SdfConfig;
-use crate::problems::sdf::init::{SdfInit, candidate_starts, initial_points};
+use crate::problems::sdf::init::{PROBE_STEPS, SdfInit, candidate_starts, initial_points};
 use crate::problems::sdf::problem::{SDF_TERMS, SdfProblem};
 use crate::problems::sdf::target::sigma_for_stroke;
 use ifslab::model::segment::PrimitiveKind;
@@ -62,10 +63,6 @@ pub fn sdf_problem(cfg: &SdfConfig, target: Vec<f64>, stroke: Option<f64>) -> Re
         None => Ok(p),
     }
 }
-
-/// Adam steps each candidate of [`SdfInit::Best`] is followed for (at the schedule's first,
-/// widest σ) before they are compared.
-pub const PROBE_STEPS: u64 = 40;
 
 /// The start [`SdfInit::Best`] picks for `problem`: every [`candidate_starts`] entry followed
 /// for [`PROBE_STEPS`] Adam steps at the first σ of the run (the strategy's learning rate
