@@ -761,6 +761,36 @@ fn flame_commands_make_describe_render_and_convert_flames() {
         let img = image::open(p(&format!("r-{i}.png"))).unwrap();
         assert_eq!((img.width(), img.height()), (48, 32));
     }
+    // Both laid over one another in one picture; layers of two sizes cannot be.
+    let (ok, msg) = ifslab(&[
+        "flame",
+        "render",
+        &p("r.flame"),
+        "--composite",
+        "-o",
+        &p("both.png"),
+    ]);
+    assert!(ok && msg.contains("composite"), "{msg}");
+    let both = image::open(p("both.png")).unwrap();
+    assert_eq!((both.width(), both.height()), (48, 32));
+    let text = std::fs::read_to_string(p("r.flame")).unwrap();
+    let size = "size=\"48 32\"";
+    let second = text.rfind(size).unwrap();
+    let mixed = format!(
+        "{}size=\"40 32\"{}",
+        &text[..second],
+        &text[second + size.len()..]
+    );
+    std::fs::write(p("mixed.flame"), mixed).unwrap();
+    let (ok, msg) = ifslab(&[
+        "flame",
+        "render",
+        &p("mixed.flame"),
+        "--composite",
+        "-o",
+        &p("mixed.png"),
+    ]);
+    assert!(!ok && msg.contains("48×32 and 40×32"), "{msg}");
     // The same seed gives the same file.
     let (ok, _) = ifslab(&[
         "flame",

@@ -214,11 +214,7 @@ impl RunConfig {
         resume: bool,
         progress: Box<dyn Progress>,
     ) -> anyhow::Result<RunReport> {
-        // One process per run folder (an image run takes the lock in `run_and_report`).
-        let _lock = match self {
-            RunConfig::Image(_) => None,
-            _ => Some(super::lock_run_dir(dir)?),
-        };
+        // Each problem's runner takes its folder's lock (`lock::lock_run_dir`) first.
         match self {
             RunConfig::Image(cfg) => {
                 let s = inversion::run_and_report(cfg, dir, resume, progress)?;

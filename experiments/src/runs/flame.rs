@@ -130,6 +130,7 @@ pub fn run(
     progress: Box<dyn Progress>,
 ) -> anyhow::Result<FlameSummary> {
     cfg.validate()?;
+    let _lock = crate::runs::lock::lock_run_dir(dir)?;
     let size = cfg.sampler.size;
     // Transparent targets are laid over the fixed background colour; for `auto` and
     // `learned` over black or white, whichever their opaque pixels stand out from.

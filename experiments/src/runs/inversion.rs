@@ -239,7 +239,7 @@ pub fn run_and_report(
     resume: bool,
     progress: Box<dyn Progress>,
 ) -> anyhow::Result<Summary> {
-    let _lock = super::lock_run_dir(dir)?;
+    let _lock = crate::runs::lock::lock_run_dir(dir)?;
     let size = cfg.target.size;
     let target = if resume {
         run_target(cfg, dir)?

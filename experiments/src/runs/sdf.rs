@@ -130,6 +130,7 @@ pub fn run(
     progress: Box<dyn Progress>,
 ) -> anyhow::Result<SdfSummary> {
     cfg.validate()?;
+    let _lock = crate::runs::lock::lock_run_dir(dir)?;
     let size = cfg.size;
     let (target, reading): (Vec<f32>, Option<TargetReading>) = if resume {
         let reading_file = dir.join(TARGET_READING_FILE);

@@ -56,6 +56,7 @@
 //! - flam3 3.1.1 (`rect.c`, `filters.c`, `palettes.c`): constants and conventions.
 
 mod chaos;
+pub mod composite;
 mod density;
 pub mod draft;
 pub mod filter;
@@ -76,6 +77,8 @@ use crate::progress::Progress;
 use chaos::{Camera, Colors, Game, GameStats, HIT_BATCH, Histogram, Selector};
 use filter::{DensityFilters, SpatialFilter};
 use tonemap::Tone;
+
+pub use composite::Composite;
 
 /// How to render a flame, beyond what the flame itself says.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

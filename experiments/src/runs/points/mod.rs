@@ -235,6 +235,7 @@ pub fn run(
 ) -> anyhow::Result<PointsSummary> {
     let start = Instant::now();
     cfg.validate()?;
+    let _lock = crate::runs::lock::lock_run_dir(dir)?;
     let resolved = cfg.resolved()?;
     let config_path = dir.join(CONFIG_FILE);
     if resume {

@@ -305,6 +305,7 @@ pub fn run(
 ) -> anyhow::Result<TextureSummary> {
     let start = Instant::now();
     cfg.validate()?;
+    let _lock = crate::runs::lock::lock_run_dir(dir)?;
     let tex = load_texture(&cfg.source, cfg.grey)?;
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     if resume {
