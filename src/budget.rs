@@ -212,6 +212,25 @@ pub fn check_work(seconds: f64, what: &str, lower: &str) -> Result<()> {
     )))
 }
 
+/// [`check_work`] for `units` of work done at `per_thread` units per second on each of
+/// `threads` threads: `what` says what is done (`1000 iterations of 110000 points`), `unit`
+/// names one unit (`points`) for the rate the estimate assumed.
+pub fn check_rate(
+    units: f64,
+    per_thread: f64,
+    threads: usize,
+    unit: &str,
+    what: &str,
+    lower: &str,
+) -> Result<()> {
+    let threads = threads.max(1);
+    check_work(
+        units / (per_thread * threads as f64),
+        &format!("{what} at ~{per_thread:.0e} {unit}/s per thread on {threads} threads"),
+        lower,
+    )
+}
+
 /// Seconds as `40 s`, `12 min`, `5.0 h`, `58 days`, `30 years`, `3.1e5 years`.
 pub fn human_duration(s: f64) -> String {
     if !s.is_finite() {

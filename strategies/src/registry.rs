@@ -13,9 +13,9 @@
 //! this one: implement [`StrategyPlugin`] and call
 //! [`register_strategy`](crate::plugins::register_strategy) once before the run (or
 //! [`register_for`] for a problem type of your own); `experiments/examples/plugin.rs` does
-//! it and runs the result through `ifslab run`'s library call. Gradient strategies need [`Differentiable`]; value-only ones
-//! (annealing today, evolutionary ones tomorrow) need only [`Anneal`]'s cost, but every
-//! problem in the registry offers both.
+//! it and runs the result through `ifslab run`'s library call. Gradient strategies need
+//! [`Differentiable`]; value-only ones (annealing today, evolutionary ones tomorrow) need
+//! only [`Anneal`]'s cost, but every problem in the registry offers both.
 
 use std::any::{Any, TypeId};
 use std::collections::HashMap;
@@ -237,18 +237,21 @@ static REGISTERED: LazyLock<RwLock<Registered>> = LazyLock::new(Default::default
 /// taken for `P` is refused.
 pub fn register_for<P: StrategyProblem>(entry: fn() -> StrategyEntry<P>) -> Result<()> {
     let kind = entry().kind;
-    if strategies::<P>().iter().any(|e| e.kind == kind) {
+    // Checked and added under one lock: two threads registering one name cannot both win.
+    let mut registered = REGISTERED.write().unwrap_or_else(|e| e.into_inner());
+    let list = registered.entry(TypeId::of::<P>()).or_default();
+    let taken = builtin_strategies::<P>().iter().any(|e| e.kind == kind)
+        || list
+            .iter()
+            .filter_map(|f| f.downcast_ref::<fn() -> StrategyEntry<P>>())
+            .any(|f| f().kind == kind);
+    if taken {
         return Err(Error::param(
             "strategy",
             format!("a strategy called `{kind}` is already registered"),
         ));
     }
-    REGISTERED
-        .write()
-        .unwrap_or_else(|e| e.into_inner())
-        .entry(TypeId::of::<P>())
-        .or_default()
-        .push(Box::new(entry));
+    list.push(Box::new(entry));
     Ok(())
 }
 

@@ -77,10 +77,9 @@ impl RunConfig {
                 let cfg = InversionConfig::from_table(table, origin)?.relative_to(dir);
                 Ok(RunConfig::Image(Box::new(cfg)))
             }
-            "points" => {
-                let cfg = PointsConfig::from_toml(&text, origin)?.relative_to(dir);
-                Ok(RunConfig::Points(Box::new(cfg)))
-            }
+            "points" => Ok(RunConfig::Points(Box::new(PointsConfig::from_table(
+                table, origin,
+            )?))),
             "texture" => {
                 let cfg = TextureConfig::from_toml(&text, origin)?.relative_to(dir);
                 Ok(RunConfig::Texture(Box::new(cfg)))

@@ -34,7 +34,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::budget::{MemoryEstimate, check_memory, check_work};
+use crate::budget::{MemoryEstimate, check_memory, check_rate};
 use crate::chaos::{Isa, LANES, MapSampler, PointSink, PointStream};
 use crate::error::{Error, Result};
 use crate::model::affine::Map2;
@@ -357,9 +357,12 @@ pub fn render_with_isa<M: Map2>(
         } else {
             cfg.points
         };
-        check_work(
-            most as f64 / (POINTS_PER_SECOND_PER_THREAD * threads as f64),
-            &format!("{most} points at ~1e8 points/s per thread on {threads} threads"),
+        check_rate(
+            most as f64,
+            POINTS_PER_SECOND_PER_THREAD,
+            threads,
+            "points",
+            &format!("{most} points"),
             "the points (--points, or --max-points with --min-hits)",
         )?;
     }

@@ -188,6 +188,14 @@ fn choices(paper: bool) -> Choices {
 }
 
 impl PointsConfig {
+    /// A config from a parsed TOML table (without the `problem` key), relative file names
+    /// read from `origin`'s folder: what `RunConfig` and a resumed run read a table with.
+    pub fn from_table(table: toml::Table, origin: &Path) -> anyhow::Result<Self> {
+        let text = toml::to_string(&table).context("re-serialising the config")?;
+        Ok(PointsConfig::from_toml(&text, origin)?
+            .relative_to(origin.parent().unwrap_or(Path::new(""))))
+    }
+
     /// Parses TOML text (without the `problem` key) and validates it; `origin` names the
     /// text in errors.
     pub fn from_toml(text: &str, origin: &Path) -> anyhow::Result<Self> {

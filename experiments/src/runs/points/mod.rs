@@ -253,9 +253,7 @@ pub fn run(
             );
         }
         table.remove(crate::runs::table::PROBLEM_KEY);
-        let text = toml::to_string(&table).context("re-serialising the config")?;
-        let stored = PointsConfig::from_toml(&text, &config_path)?
-            .relative_to(config_path.parent().unwrap_or(Path::new("")));
+        let stored = PointsConfig::from_table(table, &config_path)?;
         let same = PointsConfig {
             output: None,
             ..stored
@@ -277,7 +275,7 @@ pub fn run(
         );
     }
     let data = load_data(cfg)?;
-    // The fits' work, before the folder is made.
+    // The fits' work, before anything is written (a refused start leaves no folder).
     if cfg.sweep_pool.is_empty() {
         cfg.em_config(cfg.seed, cfg.pool)
             .check_work(data.train.len(), cfg.runs)?;

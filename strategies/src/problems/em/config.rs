@@ -180,14 +180,16 @@ impl EmConfig {
     /// Refuses `fits` fits to `n` points whose [`work`](Self::work) would take longer than
     /// the work budget ([`ifslab::budget::check_work`]) on this process's threads.
     pub fn check_work(&self, n: usize, fits: usize) -> Result<()> {
-        let threads = rayon::current_num_threads().max(1) as f64;
         let work = self.work(n) * fits.max(1) as f64;
-        Ok(ifslab::budget::check_work(
-            work / (EVALS_PER_SECOND_PER_THREAD * threads),
+        Ok(ifslab::budget::check_rate(
+            work,
+            EVALS_PER_SECOND_PER_THREAD,
+            rayon::current_num_threads(),
+            "evaluations",
             &format!(
-                "{work:.1e} point × code evaluations ({fits} fit(s) of {} iterations, K = {}, depth \
-                 {}) at ~{:.0e} per second per thread on {threads} threads",
-                self.iterations, self.components, self.depth, EVALS_PER_SECOND_PER_THREAD
+                "{work:.1e} point × code evaluations ({fits} fit(s) of {} iterations, K = {}, \
+                 depth {})",
+                self.iterations, self.components, self.depth
             ),
             "the iterations, the depth, the pool or the points",
         )?)

@@ -515,12 +515,13 @@ impl FlameLearnConfig {
         let s = &self.sampler;
         let samples = s.trajectories as f64 * (s.steps + s.warmup) as f64;
         let layers = self.flames.len() as f64;
-        let threads = rayon::current_num_threads().max(1) as f64;
-        ifslab::budget::check_work(
-            self.iterations as f64 * layers * samples / (SAMPLES_PER_SECOND_PER_THREAD * threads),
+        ifslab::budget::check_rate(
+            self.iterations as f64 * layers * samples,
+            SAMPLES_PER_SECOND_PER_THREAD,
+            rayon::current_num_threads(),
+            "samples",
             &format!(
-                "{} iterations of {layers} layer(s) × {samples:.0e} samples at \
-                 ~{SAMPLES_PER_SECOND_PER_THREAD:.0e} samples/s per thread on {threads} threads",
+                "{} iterations of {layers} layer(s) × {samples:.0e} samples",
                 self.iterations
             ),
             "`iterations` (--iters) or `sampler.trajectories` / `sampler.steps`",

@@ -550,17 +550,12 @@ impl InversionConfig {
                 t.size
             )));
         }
-        if crate::problems::image::model::find_model(&self.model.family).is_err() {
-            return Err(Error::InvalidInput(format!(
-                "config field `model.family`: unknown map family `{}` (known: {})",
-                self.model.family,
-                crate::problems::image::model::models()
-                    .iter()
-                    .map(|m| m.name)
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            )));
-        }
+        crate::problems::image::model::find_model(&self.model.family).map_err(|e| match e {
+            Error::InvalidInput(why) => {
+                Error::InvalidInput(format!("config field `model.family`: {why}"))
+            }
+            other => other,
+        })?;
         if !(1..=64).contains(&self.model.maps) {
             return Err(Error::InvalidInput(format!(
                 "config field `model.maps`: must lie in 1..=64, got {}",
@@ -580,13 +575,12 @@ impl InversionConfig {
         )?;
         // The run's work: every iteration splats (and differentiates) every point.
         let points = (self.generator.trajectories as f64) * (self.generator.length as f64);
-        let threads = rayon::current_num_threads().max(1) as f64;
-        ifslab::budget::check_work(
-            self.iterations as f64 * points / (SPLAT_POINTS_PER_SECOND_PER_THREAD * threads),
-            &format!(
-                "{} iterations of {} points at ~{:.0e} points/s per thread on {threads} threads",
-                self.iterations, points, SPLAT_POINTS_PER_SECOND_PER_THREAD
-            ),
+        ifslab::budget::check_rate(
+            self.iterations as f64 * points,
+            SPLAT_POINTS_PER_SECOND_PER_THREAD,
+            rayon::current_num_threads(),
+            "points",
+            &format!("{} iterations of {points} points", self.iterations),
             "`iterations` (--iters) or `generator.trajectories` (--trajectories)",
         )?;
         // The differentiable render's buffers, before a run allocates any of them.

@@ -99,7 +99,8 @@ pub const MOMENT_SCALE_RANGE: (f64, f64) = (0.02, 0.95);
 /// shear): `rounds` times,
 ///
 /// 1. the code's attractor is sampled by the chaos game (maps ∝ |det|, the area measure of
-///    a coverage picture), each point labelled with the map applied last;
+///    a coverage picture, with the evaluation renders' 1 % floor), each point labelled with
+///    the map applied last;
 /// 2. each data point joins the piece of its nearest attractor point;
 /// 3. map k is set so that it carries the data's mean m and covariance Σ onto its piece's
 ///    (m_k, Σ_k): `M_k = Σ_k^{1/2}·Q_k·Σ^{−1/2}`, `b_k = m_k − M_k·m`, with `Q_k` the
@@ -111,7 +112,8 @@ pub const MOMENT_SCALE_RANGE: (f64, f64) = (0.02, 0.95);
 /// of the update. Singular values are kept within [`MOMENT_SCALE_RANGE`]; a piece with
 /// fewer than six points keeps its map. Deterministic for a seed; `data` is 2-D.
 pub fn moment_refine(data: &PointSet, maps: &mut [Affine2], rounds: usize, seed: u64) {
-    use ifslab::model::Map2;
+    use ifslab::chaos::{MapSampler, Trajectory};
+    use ifslab::model::ProbabilityRule;
     use rayon::prelude::*;
     const SAMPLES: usize = 16_000;
     let n = data.len();
@@ -123,25 +125,23 @@ pub fn moment_refine(data: &PointSet, maps: &mut [Affine2], rounds: usize, seed:
     let Some((cov_half, cov_inv_half)) = sqrt_and_inverse(&cov) else {
         return;
     };
-    let mut rng = trajectory_rng(mix_seed(seed, 0x3031), 0);
-    for _ in 0..rounds {
+    for round in 0..rounds {
         // 1. The attractor, labelled.
-        let dets: Vec<f64> = maps.iter().map(|m| m.det().abs().max(1e-4)).collect();
-        let total: f64 = dets.iter().sum();
-        let mut x = maps[0].fixed_point().unwrap_or([0.0, 0.0]);
-        let mut sample = Vec::with_capacity(SAMPLES);
-        for i in 0..SAMPLES + 20 {
-            let mut u = rng.random::<f64>() * total;
-            let mut k = 0;
-            while k + 1 < maps.len() && u >= dets[k] {
-                u -= dets[k];
-                k += 1;
-            }
-            x = maps[k].apply(x);
-            if i >= 20 {
-                sample.push((x, k));
-            }
-        }
+        let dets: Vec<f64> = maps.iter().map(|m| m.det().abs()).collect();
+        let Ok(sampler) = ProbabilityRule::default()
+            .resolve(&dets)
+            .and_then(|p| MapSampler::new(&p))
+        else {
+            return;
+        };
+        let mut game = Trajectory::new(maps, &sampler, mix_seed(seed, 0x3031), round as u64, 0.0);
+        game.skip_steps(20);
+        let sample: Vec<([f64; 2], usize)> = (0..SAMPLES)
+            .map(|_| {
+                let (k, x) = game.step_indexed();
+                (x, k)
+            })
+            .collect();
         // 2. Each data point's piece.
         let label: Vec<usize> = pts
             .par_iter()
@@ -297,8 +297,9 @@ pub fn initial_theta(
 mod tests {
     use super::*;
 
-    /// Points of `maps`' attractor by the chaos game with maps ∝ |det| (the area measure,
-    /// as a coverage picture samples it when the pieces do not overlap).
+    /// Points of `maps`' attractor by a chaos game of the test's own (not the one the
+    /// method samples with), maps ∝ |det| (the area measure, as a coverage picture samples
+    /// it when the pieces do not overlap).
     fn attractor(maps: &[Affine2], n: usize, seed: u64) -> PointSet {
         use ifslab::model::Map2;
         let dets: Vec<f64> = maps.iter().map(|m| m.det().abs()).collect();

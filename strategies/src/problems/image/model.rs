@@ -429,18 +429,20 @@ pub fn models() -> Vec<&'static ModelEntry> {
 /// `build`) available to `[model] family = "…"` for the rest of the process. A name that
 /// is taken is refused.
 pub fn register_model(entry: ModelEntry) -> Result<()> {
-    if models().iter().any(|m| m.name == entry.name) {
+    // Checked and added under one lock: two threads registering one name cannot both win.
+    let mut registered = REGISTERED.write().unwrap_or_else(|e| e.into_inner());
+    if MODELS
+        .iter()
+        .chain(registered.iter().copied())
+        .any(|m| m.name == entry.name)
+    {
         return Err(Error::InvalidInput(format!(
             "a model family called `{}` is already registered",
             entry.name
         )));
     }
     // Registered once per process and kept to its end: a 'static entry like MODELS'.
-    let entry: &'static ModelEntry = Box::leak(Box::new(entry));
-    REGISTERED
-        .write()
-        .unwrap_or_else(|e| e.into_inner())
-        .push(entry);
+    registered.push(Box::leak(Box::new(entry)));
     Ok(())
 }
 

@@ -322,14 +322,12 @@ impl SdfConfig {
         };
         let steps = self.iterations.saturating_add(probes) as f64;
         let per_step = (self.size * self.size) as f64 + leaves.unwrap_or(usize::MAX) as f64;
-        let threads = rayon::current_num_threads().max(1) as f64;
-        ifslab::budget::check_work(
-            steps * per_step / (PIXELS_PER_SECOND_PER_THREAD * threads),
-            &format!(
-                "{steps} steps over {}² pixels at ~{PIXELS_PER_SECOND_PER_THREAD:.0e} pixels/s \
-                 per thread on {threads} threads",
-                self.size
-            ),
+        ifslab::budget::check_rate(
+            steps * per_step,
+            PIXELS_PER_SECOND_PER_THREAD,
+            rayon::current_num_threads(),
+            "pixels",
+            &format!("{steps} steps over {}² pixels", self.size),
             "`iterations` (--iters) or `size` (--size)",
         )?;
         Ok(())

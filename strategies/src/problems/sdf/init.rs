@@ -15,11 +15,11 @@ use rand_xoshiro::Xoshiro256PlusPlus;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
+use crate::problems::sdf::target::{INK, best_fit_line};
 
 /// Adam steps each candidate of [`SdfInit::Best`] is followed for (at the schedule's first,
 /// widest σ) before they are compared (`best_start` in `run.rs`).
 pub const PROBE_STEPS: u64 = 40;
-use crate::problems::sdf::target::{INK, best_fit_line};
 
 /// How the control points start.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
