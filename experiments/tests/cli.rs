@@ -443,7 +443,7 @@ fn quick_inversion_writes_every_output_and_resumes() {
     let cfg = std::fs::read_to_string(out.join("config.toml")).unwrap();
     for want in [
         "paper = false",
-        "init = \"em\"",
+        "init = \"collage\"",
         "em_reflections = true",
         "sigma_final = 0.4",
         "kind = \"cold_hybrid\"",

@@ -1,6 +1,6 @@
 //! `ifslab demo`: the README's main command. With no files and no downloads it renders a
 //! known code as the target and recovers an IFS code from that image at the defaults of
-//! `ifslab invert` (EM initialisation, then the hybrid Adam + annealing strategy on the
+//! `ifslab invert` (the collage start, then the hybrid Adam + annealing strategy on the
 //! differentiable splatter), writing every output of `ifslab invert` plus a one-line
 //! summary.
 
@@ -24,7 +24,7 @@ pub struct Args {
 }
 
 /// The demo's configuration: `ifslab invert TARGET --maps N` at every default (ifslab's
-/// recipe: the EM start, the cold hybrid, σ 1 → 0.4, 1000 iterations of 1000 × 110 points
+/// recipe: the collage start, the cold hybrid, σ 1 → 0.4, 1000 iterations of 1000 × 110 points
 /// at 128²), N the maps of the built-in code.
 pub fn demo_config(a: &Args) -> anyhow::Result<InversionConfig> {
     let code = ifslab::model::library::builtin(&a.target)?;

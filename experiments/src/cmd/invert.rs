@@ -35,7 +35,8 @@ pub struct Args {
     pub iters: Option<u64>,
     /// The chaotic-splatting paper's recipe instead of ifslab's: a random (Anderson–Farrell)
     /// start, the hybrid with its hot annealing, σ fixed, 2000 iterations of 2000 × 250
-    /// points. ifslab's (the default): the EM start (maps that may mirror), the cold hybrid,
+    /// points. ifslab's (the default): the collage start (or the EM start with maps that may
+    /// mirror, whichever matches the picture better), the cold hybrid,
     /// σ 1 → 0.4, 1000 iterations of 1000 × 110 points (robustness/README.md).
     #[arg(long)]
     pub paper: bool,
@@ -45,8 +46,8 @@ pub struct Args {
     /// maps drawn ∝ |det|, 50 × 300 points, summed Gaussians in the fixed window [−5, 5]², MSE,
     /// Adam at 0.05 with clipping, halvings and weight noise; it replaces --param,
     /// --supersample, --sigma, --trajectories and --length). `hybrid`
-    /// from an EM start means `cold_hybrid` (τ₀ 0.02, noise 0.05), from a random one the
-    /// paper's (τ₀ 1, noise 0.2). [default: the recipe's: hybrid]
+    /// from a collage or EM start means `cold_hybrid` (τ₀ 0.02, noise 0.05), from a random
+    /// one the paper's (τ₀ 1, noise 0.2). [default: the recipe's: hybrid]
     #[arg(long)]
     pub strategy: Option<String>,
     /// Side of the (square) target and render in pixels.
@@ -89,9 +90,11 @@ pub struct Args {
     /// Seed of the run.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Initial code: em (similitudes fitted by EM to points drawn from the target, the
-    /// reliable start) or random (an Anderson–Farrell code: the paper's recipe, which at CPU
-    /// budgets rarely recovers a fractal). [default: em; --paper: random]
+    /// Initial code: collage (affine copies of the target found inside it and assembled
+    /// into a cover, or the EM start where its attractor matches the picture better), em
+    /// (similitudes fitted by EM to points drawn from the target) or random (an
+    /// Anderson–Farrell code: the paper's recipe, which at CPU budgets rarely recovers a
+    /// fractal). [default: collage; --paper: random]
     #[arg(long)]
     pub init: Option<String>,
     /// Which way round the target's shape is drawn: auto (decide from the border),
@@ -178,7 +181,8 @@ fn config_from_flags(a: &Args) -> anyhow::Result<InversionConfig> {
         let kind = match init.as_str() {
             "random" => InitKind::Random,
             "em" => InitKind::Em,
-            other => anyhow::bail!("unknown --init `{other}`: use em or random"),
+            "collage" => InitKind::Collage,
+            other => anyhow::bail!("unknown --init `{other}`: use collage, em or random"),
         };
         set("model.init", value(&kind)?);
     }
@@ -199,13 +203,14 @@ fn config_from_flags(a: &Args) -> anyhow::Result<InversionConfig> {
     if let Some(name) = &a.strategy {
         // Command-line spelling with hyphens (`learning-fractals`) or underscores.
         let name = name.replace('-', "_");
-        let em = a
+        let fitted = a
             .init
             .as_deref()
-            .unwrap_or(if a.paper { "random" } else { "em" })
-            == "em";
-        // From an EM fit the paper's hot annealing would throw the fit away.
-        let kind = if name == HybridConfig::KIND && em {
+            .unwrap_or(if a.paper { "random" } else { "collage" })
+            != "random";
+        // From a fitted start (collage or EM) the paper's hot annealing would throw the
+        // fit away.
+        let kind = if name == HybridConfig::KIND && fitted {
             ColdHybridConfig::KIND.to_owned()
         } else {
             name

@@ -2,7 +2,7 @@
 //! the transforms that produced each point, in flam3 3.1.1's model and `.flame` format.
 //!
 //! - [`variation`]: the 99 variations of flam3 3.1.1 — names, parameters, defaults;
-//! - [`variations`]: their formulas (one file per family), written once over [`Real`] so
+//! - [`variations`]: their formulas (one file per family), written once over [`FlameScalar`] so
 //!   the same code renders (`f64`) and differentiates ([`Dual`]);
 //! - [`xform`]: a transform — pre-affine, weighted variations, post-affine, colour — with
 //!   its Jacobian and vector–Jacobian products;
@@ -27,7 +27,7 @@ pub mod genome;
 pub mod learnable;
 pub mod palette;
 pub mod random;
-pub mod real;
+pub mod scalar;
 pub mod variation;
 pub mod variations;
 pub mod xform;
@@ -36,6 +36,6 @@ pub use format::{flames_to_string, parse_flames, read_flames, write_flames};
 pub use genome::{FilterShape, Flame, Kernel, PaletteMode};
 pub use palette::Palette;
 pub use random::{Bounds, RandomFlameConfig, estimate_bounds, flame_from_affine, random_flame};
-pub use real::{Dual, Real};
+pub use scalar::{Dual, FlameScalar};
 pub use variation::{Variation, VariationKind};
 pub use xform::{Applied, Coefs, IDENTITY, PreparedXform, SmoothXform, Xform};

@@ -7,7 +7,7 @@
 //! (perspective's sine, julian's exponent, …) so the render loop reads them ready-made.
 
 use crate::error::{Error, Result};
-use crate::model::flame::real::Real;
+use crate::model::flame::scalar::FlameScalar;
 
 /// The most parameters a variation has (mobius: four complex numbers).
 pub const MAX_PARAMS: usize = 8;
@@ -368,9 +368,9 @@ impl Variation {
 }
 
 /// The values flam3 precomputes from a variation's parameters (`*_precalc` in flam3),
-/// written over any [`Real`] so their derivatives flow into the parameter gradients.
+/// written over any [`FlameScalar`] so their derivatives flow into the parameter gradients.
 #[inline(always)]
-pub(crate) fn derive<T: Real>(kind: VariationKind, p: &[T; MAX_PARAMS]) -> [T; MAX_DERIVED] {
+pub(crate) fn derive<T: FlameScalar>(kind: VariationKind, p: &[T; MAX_PARAMS]) -> [T; MAX_DERIVED] {
     use VariationKind as V;
     let z = T::cst(0.0);
     match kind {

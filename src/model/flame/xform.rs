@@ -26,7 +26,7 @@ use rand::RngCore;
 
 use crate::error::{Error, Result};
 use crate::model::affine::Map2;
-use crate::model::flame::real::{Dual, Real};
+use crate::model::flame::scalar::{Dual, FlameScalar};
 use crate::model::flame::variation::{MAX_PARAMS, Variation, VariationKind, derive};
 use crate::model::flame::variations::{Pre, eval, pre_blur};
 
@@ -39,7 +39,7 @@ pub const IDENTITY: Coefs = [1.0, 0.0, 0.0, 1.0, 0.0, 0.0];
 
 /// `c` applied to `(x, y)`, in flam3's evaluation order.
 #[inline(always)]
-pub fn affine<T: Real>(c: &[T; 6], x: T, y: T) -> (T, T) {
+pub fn affine<T: FlameScalar>(c: &[T; 6], x: T, y: T) -> (T, T) {
     (c[0] * x + c[2] * y + c[4], c[1] * x + c[3] * y + c[5])
 }
 

@@ -10,7 +10,7 @@
 //! transform's general [`Xform::vjp_params`].
 
 use crate::model::flame::learnable::Learn;
-use crate::model::flame::real::{Dual, Real};
+use crate::model::flame::scalar::{Dual, FlameScalar};
 use crate::model::flame::variation::VariationKind;
 use crate::model::flame::variations::{Pre, eval};
 use crate::model::flame::xform::{Coefs, NoRng, PreparedVar, Xform, affine, sum_variations};
@@ -120,13 +120,13 @@ impl Generator {
             } else {
                 Pre::without_radius(dx, dy)
             };
-            let cc = c.map(<Dual<3> as Real>::cst);
+            let cc = c.map(<Dual<3> as FlameScalar>::cst);
             let mut mu = [0.0; 2];
             let mut v = [0.0; 2];
             for var in &self.vars {
                 let w = Dual::<3>::var(var.weight, 2);
-                let p = var.params.map(<Dual<3> as Real>::cst);
-                let d = var.derived.map(<Dual<3> as Real>::cst);
+                let p = var.params.map(<Dual<3> as FlameScalar>::cst);
+                let d = var.derived.map(<Dual<3> as FlameScalar>::cst);
                 let (ox, oy) = eval(var.kind, w, &p, &d, &cc, &f, &mut NoRng);
                 v[0] += ox.v;
                 v[1] += oy.v;

@@ -7,12 +7,12 @@ use std::f64::consts::PI;
 use rand::RngCore;
 
 use super::{Pre, c_int, c_int32, four_uniforms, from_polar, rand01};
-use crate::model::flame::real::Real;
+use crate::model::flame::scalar::FlameScalar;
 
 type P<T> = (T, T);
 
 #[inline(never)]
-pub(super) fn noise<T: Real, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R) -> P<T> {
+pub(super) fn noise<T: FlameScalar, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R) -> P<T> {
     let a = rand01(rng) * 2.0 * PI;
     let (s, c) = a.sin_cos();
     let r = w * rand01(rng);
@@ -22,7 +22,7 @@ pub(super) fn noise<T: Real, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R)
 /// julian: one of the `|power|` roots of z^dist, drawn at random.
 /// `d = [|power|, dist/power/2]`.
 #[inline(never)]
-pub(super) fn julian<T: Real, R: RngCore + ?Sized>(
+pub(super) fn julian<T: FlameScalar, R: RngCore + ?Sized>(
     w: T,
     p: &[T; 8],
     d: &[T; 4],
@@ -36,7 +36,7 @@ pub(super) fn julian<T: Real, R: RngCore + ?Sized>(
 }
 
 #[inline(never)]
-pub(super) fn juliascope<T: Real, R: RngCore + ?Sized>(
+pub(super) fn juliascope<T: FlameScalar, R: RngCore + ?Sized>(
     w: T,
     p: &[T; 8],
     d: &[T; 4],
@@ -54,14 +54,14 @@ pub(super) fn juliascope<T: Real, R: RngCore + ?Sized>(
 }
 
 #[inline(never)]
-pub(super) fn blur<T: Real, R: RngCore + ?Sized>(w: T, rng: &mut R) -> P<T> {
+pub(super) fn blur<T: FlameScalar, R: RngCore + ?Sized>(w: T, rng: &mut R) -> P<T> {
     let a = rand01(rng) * 2.0 * PI;
     let r = w * rand01(rng);
     from_polar(r, T::cst(a))
 }
 
 #[inline(never)]
-pub(super) fn gaussian_blur<T: Real, R: RngCore + ?Sized>(w: T, rng: &mut R) -> P<T> {
+pub(super) fn gaussian_blur<T: FlameScalar, R: RngCore + ?Sized>(w: T, rng: &mut R) -> P<T> {
     let a = rand01(rng) * 2.0 * PI;
     let r = w * four_uniforms(rng);
     from_polar(r, T::cst(a))
@@ -69,7 +69,7 @@ pub(super) fn gaussian_blur<T: Real, R: RngCore + ?Sized>(w: T, rng: &mut R) -> 
 
 /// radial_blur: `d = [sin(angle·π/2), cos(angle·π/2)]` (spin and zoom amounts).
 #[inline(never)]
-pub(super) fn radial_blur<T: Real, R: RngCore + ?Sized>(
+pub(super) fn radial_blur<T: FlameScalar, R: RngCore + ?Sized>(
     w: T,
     d: &[T; 4],
     f: &Pre<T>,
@@ -84,7 +84,7 @@ pub(super) fn radial_blur<T: Real, R: RngCore + ?Sized>(
 }
 
 #[inline(never)]
-pub(super) fn pie<T: Real, R: RngCore + ?Sized>(w: T, p: &[T; 8], rng: &mut R) -> P<T> {
+pub(super) fn pie<T: FlameScalar, R: RngCore + ?Sized>(w: T, p: &[T; 8], rng: &mut R) -> P<T> {
     let (slices, rotation, thickness) = (p[0], p[1], p[2]);
     let sl = c_int(rand01(rng) * slices.v() + 0.5);
     let a = rotation + (thickness * rand01(rng) + sl) * (2.0 * PI) / slices;

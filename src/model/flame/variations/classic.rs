@@ -8,28 +8,28 @@ use std::f64::consts::{FRAC_1_PI, PI};
 use rand::RngCore;
 
 use super::{EPS, Pre, c_int, from_polar, rand_bit};
-use crate::model::flame::real::Real;
+use crate::model::flame::scalar::FlameScalar;
 
 type P<T> = (T, T);
 
 #[inline(always)]
-pub(super) fn linear<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn linear<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     (w * f.tx, w * f.ty)
 }
 
 #[inline(never)]
-pub(super) fn sinusoidal<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn sinusoidal<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     (w * f.tx.sin(), w * f.ty.sin())
 }
 
 #[inline(never)]
-pub(super) fn spherical<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn spherical<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let r2 = w / (f.sumsq + EPS);
     (r2 * f.tx, r2 * f.ty)
 }
 
 #[inline(never)]
-pub(super) fn swirl<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn swirl<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (c1, c2) = f.sumsq.sin_cos();
     let nx = c1 * f.tx - c2 * f.ty;
     let ny = c2 * f.tx + c1 * f.ty;
@@ -37,27 +37,27 @@ pub(super) fn swirl<T: Real>(w: T, f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn horseshoe<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn horseshoe<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let r = w / (f.sqrt + EPS);
     ((f.tx - f.ty) * (f.tx + f.ty) * r, f.tx * 2.0 * f.ty * r)
 }
 
 #[inline(never)]
-pub(super) fn polar<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn polar<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let nx = f.atan_xy() * FRAC_1_PI;
     let ny = f.sqrt - 1.0;
     (w * nx, w * ny)
 }
 
 #[inline(never)]
-pub(super) fn handkerchief<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn handkerchief<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let a = f.atan_xy();
     let r = f.sqrt;
     (w * r * (a + r).sin(), w * r * (a - r).cos())
 }
 
 #[inline(never)]
-pub(super) fn heart<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn heart<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let a = f.sqrt * f.atan_xy();
     let (sa, ca) = a.sin_cos();
     let r = w * f.sqrt;
@@ -65,7 +65,7 @@ pub(super) fn heart<T: Real>(w: T, f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn disc<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn disc<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let a = f.atan_xy() * FRAC_1_PI;
     let r = f.sqrt * PI;
     let (sr, cr) = r.sin_cos();
@@ -73,7 +73,7 @@ pub(super) fn disc<T: Real>(w: T, f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn spiral<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn spiral<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let r = f.sqrt + EPS;
     let r1 = w / r;
     let (sr, cr) = r.sin_cos();
@@ -81,19 +81,19 @@ pub(super) fn spiral<T: Real>(w: T, f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn hyperbolic<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn hyperbolic<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let r = f.sqrt + EPS;
     (w * f.sina() / r, w * f.cosa() * r)
 }
 
 #[inline(never)]
-pub(super) fn diamond<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn diamond<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (sr, cr) = f.sqrt.sin_cos();
     (w * f.sina() * cr, w * f.cosa() * sr)
 }
 
 #[inline(never)]
-pub(super) fn ex<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn ex<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let a = f.atan_xy();
     let r = f.sqrt;
     let n0 = (a + r).sin();
@@ -105,7 +105,7 @@ pub(super) fn ex<T: Real>(w: T, f: &Pre<T>) -> P<T> {
 
 /// julia: the square root z ↦ ±√z, the branch drawn at random (one bit).
 #[inline(never)]
-pub(super) fn julia<T: Real, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R) -> P<T> {
+pub(super) fn julia<T: FlameScalar, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R) -> P<T> {
     let mut a = f.atan_xy() * 0.5;
     if rand_bit(rng) {
         a = a + PI;
@@ -115,7 +115,7 @@ pub(super) fn julia<T: Real, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R)
 }
 
 #[inline(never)]
-pub(super) fn bent<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn bent<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let mut nx = f.tx;
     let mut ny = f.ty;
     if nx.v() < 0.0 {
@@ -129,7 +129,7 @@ pub(super) fn bent<T: Real>(w: T, f: &Pre<T>) -> P<T> {
 
 /// waves: amplitudes are the coefficients `c`, `d`, periods `e²`, `f²`.
 #[inline(never)]
-pub(super) fn waves<T: Real>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
+pub(super) fn waves<T: FlameScalar>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
     let dx2 = T::cst(1.0) / (c[4] * c[4] + EPS);
     let dy2 = T::cst(1.0) / (c[5] * c[5] + EPS);
     let nx = f.tx + c[2] * (f.ty * dx2).sin();
@@ -139,14 +139,14 @@ pub(super) fn waves<T: Real>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
 
 /// fisheye, with flam3's swapped output (x' ∝ y, y' ∝ x).
 #[inline(never)]
-pub(super) fn fisheye<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn fisheye<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let r = w * 2.0 / (f.sqrt + 1.0);
     (r * f.ty, r * f.tx)
 }
 
 /// popcorn: amplitudes are the offsets `e`, `f`.
 #[inline(never)]
-pub(super) fn popcorn<T: Real>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
+pub(super) fn popcorn<T: FlameScalar>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
     let dx = (f.ty * 3.0).tan();
     let dy = (f.tx * 3.0).tan();
     let nx = f.tx + c[4] * dx.sin();
@@ -155,21 +155,21 @@ pub(super) fn popcorn<T: Real>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn exponential<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn exponential<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let dx = w * (f.tx - 1.0).exp();
     let dy = f.ty * PI;
     from_polar(dx, dy)
 }
 
 #[inline(never)]
-pub(super) fn power<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn power<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let sina = f.sina();
     let r = w * f.sqrt.pow(sina);
     (r * f.cosa(), r * sina)
 }
 
 #[inline(never)]
-pub(super) fn cosine<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn cosine<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let a = f.tx * PI;
     let (sa, ca) = a.sin_cos();
     let nx = ca * f.ty.cosh();
@@ -179,7 +179,7 @@ pub(super) fn cosine<T: Real>(w: T, f: &Pre<T>) -> P<T> {
 
 /// rings: the ring spacing is `e² + ε`.
 #[inline(never)]
-pub(super) fn rings<T: Real>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
+pub(super) fn rings<T: FlameScalar>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
     let dx = c[4] * c[4] + EPS;
     let r = f.sqrt;
     let r = w * ((r + dx).fmod(dx * 2.0) - dx + r * (T::cst(1.0) - dx));
@@ -188,7 +188,7 @@ pub(super) fn rings<T: Real>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
 
 /// fan: blade width π(e² + ε), phase `f`.
 #[inline(never)]
-pub(super) fn fan<T: Real>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
+pub(super) fn fan<T: FlameScalar>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
     let dx = (c[4] * c[4] + EPS) * PI;
     let dy = c[5];
     let dx2 = dx * 0.5;
@@ -203,7 +203,7 @@ pub(super) fn fan<T: Real>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn blob<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn blob<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (low, high, waves) = (p[0], p[1], p[2]);
     let a = f.atan_xy();
     let bdiff = high - low;
@@ -212,7 +212,7 @@ pub(super) fn blob<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn pdj<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn pdj<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let nx1 = (p[1] * f.tx).cos();
     let nx2 = (p[2] * f.tx).sin();
     let ny1 = (p[0] * f.ty).sin();
@@ -221,7 +221,7 @@ pub(super) fn pdj<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn fan2<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn fan2<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let dy = p[1];
     let dx = (p[0] * p[0] + EPS) * PI;
     let dx2 = dx * 0.5;
@@ -238,7 +238,7 @@ pub(super) fn fan2<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn rings2<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn rings2<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let r = f.sqrt;
     let dx = p[0] * p[0] + EPS;
     let n = c_int(((r + dx) / (dx * 2.0)).v());
@@ -247,25 +247,25 @@ pub(super) fn rings2<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn eyefish<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn eyefish<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let r = w * 2.0 / (f.sqrt + 1.0);
     (r * f.tx, r * f.ty)
 }
 
 #[inline(never)]
-pub(super) fn bubble<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn bubble<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let r = w / (f.sumsq * 0.25 + 1.0);
     (r * f.tx, r * f.ty)
 }
 
 #[inline(never)]
-pub(super) fn cylinder<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn cylinder<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     (w * f.tx.sin(), w * f.ty)
 }
 
 /// perspective: `d = [sin(angle·π/2), dist·cos(angle·π/2)]`.
 #[inline(never)]
-pub(super) fn perspective<T: Real>(w: T, p: &[T; 8], d: &[T; 4], f: &Pre<T>) -> P<T> {
+pub(super) fn perspective<T: FlameScalar>(w: T, p: &[T; 8], d: &[T; 4], f: &Pre<T>) -> P<T> {
     let dist = p[1];
     let t = T::cst(1.0) / (dist - f.ty * d[0]);
     (w * dist * f.tx * t, w * d[1] * f.ty * t)

@@ -3,38 +3,38 @@
 //! included).
 
 use super::Pre;
-use crate::model::flame::real::Real;
+use crate::model::flame::scalar::FlameScalar;
 
 type P<T> = (T, T);
 
 #[inline(never)]
-pub(super) fn exp<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn exp<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let e = f.tx.exp();
     let (s, c) = f.ty.sin_cos();
     (w * e * c, w * e * s)
 }
 
 #[inline(never)]
-pub(super) fn log<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn log<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     (w * 0.5 * f.sumsq.ln(), w * f.atan_yx())
 }
 
 #[inline(never)]
-pub(super) fn sin<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn sin<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (s, c) = f.tx.sin_cos();
     let (sh, ch) = (f.ty.sinh(), f.ty.cosh());
     (w * s * ch, w * c * sh)
 }
 
 #[inline(never)]
-pub(super) fn cos<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn cos<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (s, c) = f.tx.sin_cos();
     let (sh, ch) = (f.ty.sinh(), f.ty.cosh());
     (w * c * ch, -(w * s * sh))
 }
 
 #[inline(never)]
-pub(super) fn tan<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn tan<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (s, c) = (f.tx * 2.0).sin_cos();
     let (sh, ch) = ((f.ty * 2.0).sinh(), (f.ty * 2.0).cosh());
     let den = T::cst(1.0) / (c + ch);
@@ -42,7 +42,7 @@ pub(super) fn tan<T: Real>(w: T, f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn sec<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn sec<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (s, c) = f.tx.sin_cos();
     let (sh, ch) = (f.ty.sinh(), f.ty.cosh());
     let den = T::cst(2.0) / ((f.tx * 2.0).cos() + (f.ty * 2.0).cosh());
@@ -50,7 +50,7 @@ pub(super) fn sec<T: Real>(w: T, f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn csc<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn csc<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (s, c) = f.tx.sin_cos();
     let (sh, ch) = (f.ty.sinh(), f.ty.cosh());
     let den = T::cst(2.0) / ((f.ty * 2.0).cosh() - (f.tx * 2.0).cos());
@@ -58,7 +58,7 @@ pub(super) fn csc<T: Real>(w: T, f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn cot<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn cot<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (s, c) = (f.tx * 2.0).sin_cos();
     let (sh, ch) = ((f.ty * 2.0).sinh(), (f.ty * 2.0).cosh());
     let den = T::cst(1.0) / (ch - c);
@@ -66,21 +66,21 @@ pub(super) fn cot<T: Real>(w: T, f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn sinh<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn sinh<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (s, c) = f.ty.sin_cos();
     let (sh, ch) = (f.tx.sinh(), f.tx.cosh());
     (w * sh * c, w * ch * s)
 }
 
 #[inline(never)]
-pub(super) fn cosh<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn cosh<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (s, c) = f.ty.sin_cos();
     let (sh, ch) = (f.tx.sinh(), f.tx.cosh());
     (w * ch * c, w * sh * s)
 }
 
 #[inline(never)]
-pub(super) fn tanh<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn tanh<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (s, c) = (f.ty * 2.0).sin_cos();
     let (sh, ch) = ((f.tx * 2.0).sinh(), (f.tx * 2.0).cosh());
     let den = T::cst(1.0) / (c + ch);
@@ -88,7 +88,7 @@ pub(super) fn tanh<T: Real>(w: T, f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn sech<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn sech<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (s, c) = f.ty.sin_cos();
     let (sh, ch) = (f.tx.sinh(), f.tx.cosh());
     let den = T::cst(2.0) / ((f.ty * 2.0).cos() + (f.tx * 2.0).cosh());
@@ -96,7 +96,7 @@ pub(super) fn sech<T: Real>(w: T, f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn csch<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn csch<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (s, c) = f.ty.sin_cos();
     let (sh, ch) = (f.tx.sinh(), f.tx.cosh());
     let den = T::cst(2.0) / ((f.tx * 2.0).cosh() - (f.ty * 2.0).cos());
@@ -104,7 +104,7 @@ pub(super) fn csch<T: Real>(w: T, f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn coth<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn coth<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (s, c) = (f.ty * 2.0).sin_cos();
     let (sh, ch) = ((f.tx * 2.0).sinh(), (f.tx * 2.0).cosh());
     let den = T::cst(1.0) / (ch - c);

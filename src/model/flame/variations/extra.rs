@@ -1,13 +1,13 @@
 //! Variations 96–98, the last added to flam3: auger, flux and mobius.
 
 use super::Pre;
-use crate::model::flame::real::Real;
+use crate::model::flame::scalar::FlameScalar;
 
 type P<T> = (T, T);
 
 /// auger: `p = [sym, weight, freq, scale]`.
 #[inline(never)]
-pub(super) fn auger<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn auger<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (sym, aw, freq, scale) = (p[0], p[1], p[2], p[3]);
     let s = (freq * f.tx).sin();
     let t = (freq * f.ty).sin();
@@ -18,7 +18,7 @@ pub(super) fn auger<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 
 /// flux: the weight also places the two poles at (±weight, 0).
 #[inline(never)]
-pub(super) fn flux<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn flux<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let xpw = f.tx + w;
     let xmw = f.tx - w;
     let avgr = w
@@ -30,7 +30,7 @@ pub(super) fn flux<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 
 /// mobius: (a·z + b)/(c·z + d) with `p = [re a, im a, re b, im b, re c, im c, re d, im d]`.
 #[inline(never)]
-pub(super) fn mobius<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn mobius<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (ra, ia, rb, ib, rc, ic, rd, id) = (p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7]);
     let re_u = ra * f.tx - ia * f.ty + rb;
     let im_u = ra * f.ty + ia * f.tx + ib;

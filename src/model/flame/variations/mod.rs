@@ -1,4 +1,4 @@
-//! The variation formulas, one file per family, each written once over [`Real`].
+//! The variation formulas, one file per family, each written once over [`FlameScalar`].
 //!
 //! - [`classic`]: the variations of Draves & Reckase's paper (linear … perspective);
 //! - [`blurs`]: noise, julian, juliascope, the blurs and pie (random);
@@ -22,7 +22,7 @@ mod zplus;
 
 use rand::RngCore;
 
-use crate::model::flame::real::Real;
+use crate::model::flame::scalar::FlameScalar;
 use crate::model::flame::variation::{MAX_DERIVED, MAX_PARAMS, VariationKind};
 
 /// flam3's ε (`EPS` in `private.h`).
@@ -40,7 +40,7 @@ pub(crate) struct Pre<T> {
     pub sqrt: T,
 }
 
-impl<T: Real> Pre<T> {
+impl<T: FlameScalar> Pre<T> {
     #[inline(always)]
     pub(crate) fn new(tx: T, ty: T) -> Self {
         let sumsq = tx * tx + ty * ty;
@@ -146,7 +146,7 @@ pub(crate) fn c_int(x: f64) -> f64 {
 /// before the variations run (see the transform).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-pub(crate) fn eval<T: Real, R: RngCore + ?Sized>(
+pub(crate) fn eval<T: FlameScalar, R: RngCore + ?Sized>(
     kind: VariationKind,
     w: T,
     p: &[T; MAX_PARAMS],
@@ -262,7 +262,7 @@ pub(crate) fn eval<T: Real, R: RngCore + ?Sized>(
 /// `(r·cos a, r·sin a)`: the point at radius `r` and angle `a`, the last step of the
 /// variations that work in polar coordinates.
 #[inline(always)]
-pub(crate) fn from_polar<T: Real>(r: T, a: T) -> (T, T) {
+pub(crate) fn from_polar<T: FlameScalar>(r: T, a: T) -> (T, T) {
     let (s, c) = a.sin_cos();
     (r * c, r * s)
 }

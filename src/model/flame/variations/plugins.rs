@@ -7,13 +7,13 @@ use std::f64::consts::{FRAC_1_PI, FRAC_2_PI, FRAC_PI_2, FRAC_PI_4, PI};
 use rand::RngCore;
 
 use super::{EPS, Pre, c_int, c_int32, from_polar, rand01, rint};
-use crate::model::flame::real::Real;
+use crate::model::flame::scalar::FlameScalar;
 
 type P<T> = (T, T);
 
 /// disc2: `d = [rot·π, sin add, cos add − 1]` (add = twist, scaled beyond ±2π as flam3).
 #[inline(never)]
-pub(super) fn disc2<T: Real>(w: T, d: &[T; 4], f: &Pre<T>) -> P<T> {
+pub(super) fn disc2<T: FlameScalar>(w: T, d: &[T; 4], f: &Pre<T>) -> P<T> {
     let t = d[0] * (f.tx + f.ty);
     let (s, c) = t.sin_cos();
     let r = w * f.atan_xy() / PI;
@@ -23,7 +23,7 @@ pub(super) fn disc2<T: Real>(w: T, d: &[T; 4], f: &Pre<T>) -> P<T> {
 /// super_shape: `p = [rnd, m, n1, n2, n3, holes]`, `d = [m/4, −1/n1]`. Draws one number
 /// whatever `rnd` (which mixes it with the radius).
 #[inline(never)]
-pub(super) fn super_shape<T: Real, R: RngCore + ?Sized>(
+pub(super) fn super_shape<T: FlameScalar, R: RngCore + ?Sized>(
     w: T,
     p: &[T; 8],
     d: &[T; 4],
@@ -41,7 +41,7 @@ pub(super) fn super_shape<T: Real, R: RngCore + ?Sized>(
 }
 
 #[inline(never)]
-pub(super) fn flower<T: Real, R: RngCore + ?Sized>(
+pub(super) fn flower<T: FlameScalar, R: RngCore + ?Sized>(
     w: T,
     p: &[T; 8],
     f: &Pre<T>,
@@ -53,7 +53,7 @@ pub(super) fn flower<T: Real, R: RngCore + ?Sized>(
 }
 
 #[inline(never)]
-pub(super) fn conic<T: Real, R: RngCore + ?Sized>(
+pub(super) fn conic<T: FlameScalar, R: RngCore + ?Sized>(
     w: T,
     p: &[T; 8],
     f: &Pre<T>,
@@ -66,7 +66,7 @@ pub(super) fn conic<T: Real, R: RngCore + ?Sized>(
 }
 
 #[inline(never)]
-pub(super) fn parabola<T: Real, R: RngCore + ?Sized>(
+pub(super) fn parabola<T: FlameScalar, R: RngCore + ?Sized>(
     w: T,
     p: &[T; 8],
     f: &Pre<T>,
@@ -79,7 +79,7 @@ pub(super) fn parabola<T: Real, R: RngCore + ?Sized>(
 }
 
 #[inline(never)]
-pub(super) fn bent2<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn bent2<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let mut nx = f.tx;
     let mut ny = f.ty;
     if nx.v() < 0.0 {
@@ -92,7 +92,7 @@ pub(super) fn bent2<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn bipolar<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn bipolar<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let x2y2 = f.sumsq;
     let t = x2y2 + 1.0;
     let x2 = f.tx * 2.0;
@@ -110,7 +110,7 @@ pub(super) fn bipolar<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn boarders<T: Real, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R) -> P<T> {
+pub(super) fn boarders<T: FlameScalar, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R) -> P<T> {
     let rx = T::cst(rint(f.tx.v()));
     let ry = T::cst(rint(f.ty.v()));
     let ox = f.tx - rx;
@@ -144,7 +144,7 @@ pub(super) fn boarders<T: Real, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut
 }
 
 #[inline(never)]
-pub(super) fn butterfly<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn butterfly<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     // 4/√(3π)
     let wx = w * 1.302_940_031_741_119_7;
     let y2 = f.ty * 2.0;
@@ -153,7 +153,7 @@ pub(super) fn butterfly<T: Real>(w: T, f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn cell<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn cell<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let size = p[0];
     let inv = T::cst(1.0) / size;
     let mut x = c_int32((f.tx * inv).v().floor());
@@ -175,7 +175,7 @@ pub(super) fn cell<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn cpow<T: Real, R: RngCore + ?Sized>(
+pub(super) fn cpow<T: FlameScalar, R: RngCore + ?Sized>(
     w: T,
     p: &[T; 8],
     f: &Pre<T>,
@@ -194,7 +194,7 @@ pub(super) fn cpow<T: Real, R: RngCore + ?Sized>(
 }
 
 #[inline(never)]
-pub(super) fn curve<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn curve<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (xamp, yamp) = (p[0], p[1]);
     let mut xlen = p[2] * p[2];
     let mut ylen = p[3] * p[3];
@@ -211,7 +211,7 @@ pub(super) fn curve<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn edisc<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn edisc<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let tmp = f.sumsq + 1.0;
     let tmp2 = f.tx * 2.0;
     let r1 = (tmp + tmp2).sqrt();
@@ -230,7 +230,7 @@ pub(super) fn edisc<T: Real>(w: T, f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn elliptic<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn elliptic<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let tmp = f.sumsq + 1.0;
     let x2 = f.tx * 2.0;
     let xmax = ((tmp + x2).sqrt() + (tmp - x2).sqrt()) * 0.5;
@@ -250,7 +250,7 @@ pub(super) fn elliptic<T: Real>(w: T, f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn escher<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn escher<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let a = f.atan_yx();
     let lnr = f.sumsq.ln() * 0.5;
     let (seb, ceb) = p[0].sin_cos();
@@ -262,7 +262,7 @@ pub(super) fn escher<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn foci<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn foci<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let expx = f.tx.exp() * 0.5;
     let expnx = T::cst(0.25) / expx;
     let (sn, cn) = f.ty.sin_cos();
@@ -273,7 +273,7 @@ pub(super) fn foci<T: Real>(w: T, f: &Pre<T>) -> P<T> {
 /// lazysusan: `p = [spin, space, twist, x, y]`; the disc of radius `weight` around
 /// `(x, −y)` turns, the rest is pushed out by `space`.
 #[inline(never)]
-pub(super) fn lazysusan<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn lazysusan<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (spin, space, twist, lx, ly) = (p[0], p[1], p[2], p[3], p[4]);
     let x = f.tx - lx;
     let y = f.ty + ly;
@@ -290,7 +290,7 @@ pub(super) fn lazysusan<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn loonie<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn loonie<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let r2 = f.sumsq;
     let w2 = w * w;
     if r2.v() < w2.v() {
@@ -302,7 +302,7 @@ pub(super) fn loonie<T: Real>(w: T, f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn modulus<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn modulus<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let wrap = |t: T, m: T| {
         let r = m * 2.0;
         if t.v() > m.v() {
@@ -318,7 +318,7 @@ pub(super) fn modulus<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 
 /// oscilloscope: `p = [separation, frequency, amplitude, damping]`.
 #[inline(never)]
-pub(super) fn oscilloscope<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn oscilloscope<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (sep, freq, amp, damp) = (p[0], p[1], p[2], p[3]);
     let tpf = freq * (2.0 * PI);
     let t = if damp.v() == 0.0 {
@@ -334,13 +334,13 @@ pub(super) fn oscilloscope<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn polar2<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn polar2<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let p2v = w / PI;
     (p2v * f.atan_xy(), p2v / 2.0 * f.sumsq.ln())
 }
 
 #[inline(never)]
-pub(super) fn popcorn2<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn popcorn2<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (px, py, pc) = (p[0], p[1], p[2]);
     (
         w * (f.tx + px * (f.ty * pc).tan().sin()),
@@ -349,7 +349,7 @@ pub(super) fn popcorn2<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn scry<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn scry<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let t = f.sumsq;
     let r = T::cst(1.0) / (f.sqrt * (t + T::cst(1.0) / (w + EPS)));
     (f.tx * r, f.ty * r)
@@ -357,7 +357,7 @@ pub(super) fn scry<T: Real>(w: T, f: &Pre<T>) -> P<T> {
 
 /// separation: `p = [x, xinside, y, yinside]`.
 #[inline(never)]
-pub(super) fn separation<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn separation<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let side = |t: T, s: T, inside: T| {
         let s2 = s * s;
         if t.v() > 0.0 {
@@ -370,7 +370,7 @@ pub(super) fn separation<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn split<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn split<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let y = if (f.tx * p[0] * PI).cos().v() >= 0.0 {
         w * f.ty
     } else {
@@ -385,7 +385,7 @@ pub(super) fn split<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn splits<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn splits<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let x = if f.tx.v() >= 0.0 {
         w * (f.tx + p[0])
     } else {
@@ -400,7 +400,7 @@ pub(super) fn splits<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn stripes<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn stripes<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (space, warp) = (p[0], p[1]);
     let roundx = T::cst((f.tx + 0.5).v().floor());
     let offsetx = f.tx - roundx;
@@ -412,7 +412,7 @@ pub(super) fn stripes<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 
 /// wedge: `p = [angle, hole, count, swirl]`.
 #[inline(never)]
-pub(super) fn wedge<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn wedge<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (angle, hole, count, swirl) = (p[0], p[1], p[2], p[3]);
     let r = f.sqrt;
     let a = f.atan_yx() + swirl * r;
@@ -426,7 +426,7 @@ pub(super) fn wedge<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 /// wedge_julia: `p = [angle, count, power, dist]`, `d = [1 − angle·count/(2π), |power|,
 /// dist/power/2]`.
 #[inline(never)]
-pub(super) fn wedge_julia<T: Real, R: RngCore + ?Sized>(
+pub(super) fn wedge_julia<T: FlameScalar, R: RngCore + ?Sized>(
     w: T,
     p: &[T; 8],
     d: &[T; 4],
@@ -444,7 +444,7 @@ pub(super) fn wedge_julia<T: Real, R: RngCore + ?Sized>(
 
 /// wedge_sph: `p = [angle, count, hole, swirl]`.
 #[inline(never)]
-pub(super) fn wedge_sph<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn wedge_sph<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (angle, count, hole, swirl) = (p[0], p[1], p[2], p[3]);
     let r = T::cst(1.0) / (f.sqrt + EPS);
     let a = f.atan_yx() + swirl * r;
@@ -456,7 +456,7 @@ pub(super) fn wedge_sph<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn whorl<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn whorl<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let r = f.sqrt;
     let a = if r.v() < w.v() {
         f.atan_yx() + p[0] / (w - r)
@@ -469,7 +469,7 @@ pub(super) fn whorl<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 
 /// waves2: `p = [freqx, scalex, freqy, scaley]`.
 #[inline(never)]
-pub(super) fn waves2<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn waves2<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     (
         w * (f.tx + p[1] * (f.ty * p[0]).sin()),
         w * (f.ty + p[3] * (f.tx * p[2]).sin()),

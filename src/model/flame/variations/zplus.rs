@@ -7,12 +7,12 @@ use std::f64::consts::PI;
 use rand::RngCore;
 
 use super::{EPS, Pre, rand01};
-use crate::model::flame::real::Real;
+use crate::model::flame::scalar::FlameScalar;
 
 type P<T> = (T, T);
 
 #[inline(never)]
-pub(super) fn ngon<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn ngon<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (sides, power, circle, corners) = (p[0], p[1], p[2], p[3]);
     let r_factor = f.sumsq.pow(power / 2.0);
     let theta = f.atan_yx();
@@ -27,7 +27,7 @@ pub(super) fn ngon<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn curl<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn curl<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (c1, c2) = (p[0], p[1]);
     let re = c1 * f.tx + 1.0 + c2 * (f.tx * f.tx - f.ty * f.ty);
     let im = c1 * f.ty + c2 * 2.0 * f.tx * f.ty;
@@ -36,7 +36,7 @@ pub(super) fn curl<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn rectangles<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
+pub(super) fn rectangles<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let fold = |t: T, s: T| {
         if s.v() == 0.0 {
             w * t
@@ -48,26 +48,26 @@ pub(super) fn rectangles<T: Real>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn arch<T: Real, R: RngCore + ?Sized>(w: T, rng: &mut R) -> P<T> {
+pub(super) fn arch<T: FlameScalar, R: RngCore + ?Sized>(w: T, rng: &mut R) -> P<T> {
     let a = w * rand01(rng) * PI;
     let (s, c) = a.sin_cos();
     (w * s, w * (s * s) / c)
 }
 
 #[inline(never)]
-pub(super) fn tangent<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn tangent<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     (w * f.tx.sin() / f.ty.cos(), w * f.ty.tan())
 }
 
 #[inline(never)]
-pub(super) fn square<T: Real, R: RngCore + ?Sized>(w: T, rng: &mut R) -> P<T> {
+pub(super) fn square<T: FlameScalar, R: RngCore + ?Sized>(w: T, rng: &mut R) -> P<T> {
     let x = w * (rand01(rng) - 0.5);
     let y = w * (rand01(rng) - 0.5);
     (x, y)
 }
 
 #[inline(never)]
-pub(super) fn rays<T: Real, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R) -> P<T> {
+pub(super) fn rays<T: FlameScalar, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R) -> P<T> {
     let a = w * rand01(rng) * PI;
     let r = w / (f.sumsq + EPS);
     let tanr = w * a.tan() * r;
@@ -75,14 +75,14 @@ pub(super) fn rays<T: Real, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R) 
 }
 
 #[inline(never)]
-pub(super) fn blade<T: Real, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R) -> P<T> {
+pub(super) fn blade<T: FlameScalar, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R) -> P<T> {
     let r = w * rand01(rng) * f.sqrt;
     let (s, c) = r.sin_cos();
     (w * f.tx * (c + s), w * f.tx * (c - s))
 }
 
 #[inline(never)]
-pub(super) fn secant2<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn secant2<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let r = w * f.sqrt;
     let cr = r.cos();
     let icr = T::cst(1.0) / cr;
@@ -95,7 +95,11 @@ pub(super) fn secant2<T: Real>(w: T, f: &Pre<T>) -> P<T> {
 }
 
 #[inline(never)]
-pub(super) fn twintrian<T: Real, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R) -> P<T> {
+pub(super) fn twintrian<T: FlameScalar, R: RngCore + ?Sized>(
+    w: T,
+    f: &Pre<T>,
+    rng: &mut R,
+) -> P<T> {
     let r = w * rand01(rng) * f.sqrt;
     let (s, c) = r.sin_cos();
     let mut diff = (s * s).log10() + c;
@@ -107,7 +111,7 @@ pub(super) fn twintrian<T: Real, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mu
 }
 
 #[inline(never)]
-pub(super) fn cross<T: Real>(w: T, f: &Pre<T>) -> P<T> {
+pub(super) fn cross<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let s = f.tx * f.tx - f.ty * f.ty;
     let r = w * (T::cst(1.0) / (s * s + EPS)).sqrt();
     (f.tx * r, f.ty * r)

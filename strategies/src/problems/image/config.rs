@@ -377,9 +377,9 @@ impl InversionConfig {
     /// |---|---|---|
     /// | `iterations` | 1000 | 2000 |
     /// | `generator` | 1000 trajectories × 110 steps | the paper's 2000 × 250 |
-    /// | `model.init` | `em` (EM similitudes fitted to the target's points) | `random` (Anderson–Farrell) |
+    /// | `model.init` | `collage` (copies of the target found in it, or the EM start where it matches better) | `random` (Anderson–Farrell) |
     /// | `model.em_reflections` | true (the EM start's maps may mirror) | false |
-    /// | `strategy` | `cold_hybrid` from an EM start, `hybrid` from a random one | `hybrid` |
+    /// | `strategy` | `cold_hybrid` from a collage or EM start, `hybrid` from a random one | `hybrid` |
     /// | `renderer.sigma_final` | 0.4 (σ 1 → 0.4 over the run) | none (σ fixed) |
     pub fn preset(paper: bool, table: &toml::Table) -> toml::Table {
         use crate::optim::hybrid::ColdHybridConfig;
@@ -399,7 +399,7 @@ impl InversionConfig {
         }
         let init = get_dotted(table, "model.init")
             .and_then(|v| v.as_str())
-            .unwrap_or("em");
+            .unwrap_or("collage");
         let mut preset = table_of([
             ("iterations", (DEFAULT_ITERATIONS as i64).into()),
             (
@@ -407,12 +407,12 @@ impl InversionConfig {
                 (DEFAULT_TRAJECTORIES as i64).into(),
             ),
             ("generator.length", (DEFAULT_LENGTH as i64).into()),
-            ("model.init", "em".into()),
+            ("model.init", "collage".into()),
             ("model.em_reflections", true.into()),
             ("renderer.sigma_final", DEFAULT_SIGMA_FINAL.into()),
         ]);
         if !named {
-            let kind = if init == "em" {
+            let kind = if init != "random" {
                 ColdHybridConfig::KIND
             } else {
                 HybridConfig::KIND
@@ -663,7 +663,7 @@ mod tests {
     fn minimal_config_gets_ifslabs_recipe_and_round_trips() {
         let cfg = InversionConfig::from_toml(MINIMAL, Path::new("c.toml")).unwrap();
         assert!(!cfg.paper);
-        assert_eq!(cfg.model.init, InitKind::Em);
+        assert_eq!(cfg.model.init, InitKind::Collage);
         assert_eq!(cfg.strategy.name(), "cold_hybrid");
         assert_eq!(cfg.renderer.sigma_final, Some(DEFAULT_SIGMA_FINAL));
         assert_eq!(cfg.loss, LossConfig::default());
@@ -677,6 +677,16 @@ mod tests {
         )
         .unwrap();
         assert_eq!(r.strategy.name(), "hybrid");
+        // The EM start keeps the cold hybrid.
+        let em = InversionConfig::from_toml(
+            &format!("{MINIMAL}[model]\ninit = \"em\"\n"),
+            Path::new("c.toml"),
+        )
+        .unwrap();
+        assert_eq!(
+            (em.model.init, em.strategy.name()),
+            (InitKind::Em, "cold_hybrid")
+        );
         // A config that tunes the recipe's strategy without naming it keeps it, under
         // either recipe.
         for (paper, kind) in [("", "cold_hybrid"), ("paper = true\n", "hybrid")] {

@@ -2,7 +2,10 @@
 //! target image, with any of the gradient or annealing strategies.
 //!
 //! - [`target`]: load and frame targets the way the model frames its points;
-//! - [`init`]: the starting code (random, given, or fitted by EM to the target's points);
+//! - [`init`]: the starting code (random, given, fitted by EM to the target's points, or
+//!   the [`collage`] start: copies of the target found inside it);
+//! - [`collage`]: the collage search (candidate maps that carry the ink onto itself, greedy
+//!   covers, scored by their attractors);
 //! - [`model`]: θ ↔ maps of one type (affine under a parameterisation, similitudes, …): the
 //!   open set of map types an inversion can fit (`[model] family`);
 //! - [`problem`]: θ → maps → splat → composite loss and its gradient;
@@ -13,6 +16,7 @@
 //! ## References
 //! - Djeacoumar et al., *Learning Image Fractals Using Chaotic Differentiable Point Splatting*.
 
+pub mod collage;
 pub mod config;
 pub mod init;
 pub mod landscape;

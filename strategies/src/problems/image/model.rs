@@ -297,7 +297,8 @@ pub struct ModelConfig {
     pub maps: usize,
     /// Parameterisation of θ (affine maps).
     pub parameterisation: ParamKind,
-    /// How the initial code is chosen (random or em) when `init_code` is not given.
+    /// How the initial code is chosen (`random`, `em` or `collage`) when `init_code` is not
+    /// given.
     pub init: InitKind,
     /// Seed of the initial code (Anderson–Farrell sampler, EM); default: the run's seed.
     pub init_seed: Option<u64>,
@@ -307,7 +308,8 @@ pub struct ModelConfig {
     /// Standard deviation of Gaussian noise added to the initial θ.
     pub init_noise: f64,
     /// Let the EM start's similitudes reflect as well as rotate (a code whose maps mirror
-    /// is then within the start's reach). Written only when on.
+    /// is then within the start's reach; also the EM rival of the collage start). Written
+    /// only when on.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub em_reflections: bool,
     /// Rounds of [`moment_refine`](crate::problems::image::init::moment_refine) after the
@@ -386,9 +388,14 @@ impl Default for ModelConfig {
 pub enum InitKind {
     /// An Anderson–Farrell random code (the paper's start).
     Random,
-    /// EM on points sampled from the target image (the reliable start).
+    /// EM on points sampled from the target image.
     #[default]
     Em,
+    /// Affine copies of the target found inside the target, assembled into a cover
+    /// ([`collage`](crate::problems::image::collage)), or the EM start where its attractor
+    /// matches the target better ([`collage_or_em`](crate::problems::image::init::collage_or_em)):
+    /// ifslab's recipe.
+    Collage,
 }
 
 /// One model family a config can name.

@@ -1,7 +1,7 @@
 //! The scalar the variation formulas are written over: `f64` for rendering, [`Dual`] for
 //! exact derivatives.
 //!
-//! Every variation is one generic function of a [`Real`]. Instantiated with `f64` it is the
+//! Every variation is one generic function of a [`FlameScalar`]. Instantiated with `f64` it is the
 //! renderer's forward pass (monomorphised, no overhead) and reproduces flam3's arithmetic
 //! operation for operation. Instantiated with `Dual<K>` — a value carrying `K` partial
 //! derivatives — the same code yields the exact Jacobian by the chain rule applied to each
@@ -15,7 +15,7 @@ use std::ops::{Add, Div, Mul, Neg, Sub};
 use super::fast_math;
 
 /// Arithmetic and the elementary functions the flam3 variations use.
-pub trait Real:
+pub trait FlameScalar:
     Copy
     + Add<Output = Self>
     + Sub<Output = Self>
@@ -64,7 +64,7 @@ pub trait Real:
     fn fmod(self, m: Self) -> Self;
 }
 
-impl Real for f64 {
+impl FlameScalar for f64 {
     #[inline(always)]
     fn cst(v: f64) -> Self {
         v
@@ -258,7 +258,7 @@ impl<const K: usize> Div<f64> for Dual<K> {
     }
 }
 
-impl<const K: usize> Real for Dual<K> {
+impl<const K: usize> FlameScalar for Dual<K> {
     fn cst(v: f64) -> Self {
         Dual { v, d: [0.0; K] }
     }
