@@ -318,15 +318,15 @@ mod tests {
     use super::*;
     use ifslab::model::Map2;
 
-    /// Points of `maps`' attractor by a chaos game of the test's own (not the one the
-    /// method samples with), maps ∝ |det| (the area measure, as a coverage picture samples
-    /// it when the pieces do not overlap).
-    fn attractor(maps: &[Affine2], n: usize, seed: u64) -> PointSet {
-        let dets: Vec<f64> = maps.iter().map(|m| m.det().abs()).collect();
+    /// `n` points of `maps`' attractor by a chaos game of the test's own (not the one the
+    /// method samples with), maps ∝ max(|det|, `floor`) (the area measure, as a coverage
+    /// picture samples it when the pieces do not overlap), after 50 dropped steps.
+    fn chaos_game(maps: &[Affine2], n: usize, seed: u64, floor: f64) -> Vec<[f64; 2]> {
+        let dets: Vec<f64> = maps.iter().map(|m| m.det().abs().max(floor)).collect();
         let total: f64 = dets.iter().sum();
         let mut rng = trajectory_rng(seed, 0);
         let mut x = [0.0, 0.0];
-        let mut data = Vec::with_capacity(2 * n);
+        let mut points = Vec::with_capacity(n);
         for i in 0..n + 50 {
             let mut u = rng.random::<f64>() * total;
             let k = dets
@@ -338,10 +338,15 @@ mod tests {
                 .unwrap_or(maps.len() - 1);
             x = maps[k].apply(x);
             if i >= 50 {
-                data.extend_from_slice(&x);
+                points.push(x);
             }
         }
-        PointSet::new(2, data).unwrap()
+        points
+    }
+
+    /// The attractor's points as a point set.
+    fn attractor(maps: &[Affine2], n: usize, seed: u64) -> PointSet {
+        PointSet::new(2, chaos_game(maps, n, seed, 0.0).concat()).unwrap()
     }
 
     /// The moment refinement turns similitudes into the stretched, sheared maps of a code
@@ -413,25 +418,7 @@ mod tests {
     /// A random affine code's attractor drawn by the test's own chaos game (maps ∝ |det|),
     /// framed into `size²` pixels of the inversion's `[−1, 1]²` (y up), as a binary picture.
     fn picture(maps: &[Affine2], size: usize) -> Vec<f32> {
-        let dets: Vec<f64> = maps.iter().map(|m| m.det().abs()).collect();
-        let total: f64 = dets.iter().sum();
-        let mut rng = trajectory_rng(11, 0);
-        let mut x = [0.0, 0.0];
-        let mut pts = Vec::new();
-        for i in 0..400_050 {
-            let mut u = rng.random::<f64>() * total;
-            let k = dets
-                .iter()
-                .position(|&d| {
-                    u -= d;
-                    u < 0.0
-                })
-                .unwrap_or(maps.len() - 1);
-            x = maps[k].apply(x);
-            if i >= 50 {
-                pts.push(x);
-            }
-        }
+        let pts = chaos_game(maps, 400_000, 11, 0.0);
         let (lo, hi) = pts
             .iter()
             .fold(([f64::MAX; 2], [f64::MIN; 2]), |(lo, hi), p| {
@@ -461,21 +448,8 @@ mod tests {
     /// IoU of the attractor of `maps` (the test's chaos game) with the picture's ink.
     fn iou(maps: &[Affine2], image: &[f32], size: usize) -> f64 {
         let mut on = vec![false; image.len()];
-        let mut rng = trajectory_rng(12, 0);
-        let mut x = [0.0, 0.0];
-        let dets: Vec<f64> = maps.iter().map(|m| m.det().abs().max(1e-3)).collect();
-        let total: f64 = dets.iter().sum();
-        for i in 0..200_050 {
-            let mut u = rng.random::<f64>() * total;
-            let k = dets
-                .iter()
-                .position(|&d| {
-                    u -= d;
-                    u < 0.0
-                })
-                .unwrap_or(maps.len() - 1);
-            x = maps[k].apply(x);
-            if let Some(j) = pixel_of(x, size).filter(|_| i >= 50) {
+        for p in chaos_game(maps, 200_000, 12, 1e-3) {
+            if let Some(j) = pixel_of(p, size) {
                 on[j] = true;
             }
         }
