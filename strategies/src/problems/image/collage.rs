@@ -329,19 +329,25 @@ fn count(bits: &[u64]) -> u32 {
     bits.iter().map(|w| w.count_ones()).sum()
 }
 
-/// The score by which starts are compared: the IoU of the attractor of `maps` (in the
-/// inversion's coordinates) with the ink of `target`, as the search scores its covers.
-pub fn start_score(
+/// The scores by which starts are compared: for each start (maps in the inversion's
+/// coordinates), the IoU of its attractor with the ink of `target`, as the search scores
+/// its covers (one distance field for all).
+pub fn start_scores(
     target: &[f32],
     size: usize,
-    maps: &[Affine2],
+    starts: &[&[Affine2]],
     seed: u64,
     search: &CollageSearch,
-) -> Result<f64> {
+) -> Result<Vec<f64>> {
     let field = Field::new(target, size, search.ink_level)?;
-    let pixel: Vec<PixelMap> = maps.iter().map(|m| to_pixel_frame(m, size)).collect();
     let stream = mix_seed(seed, 0xC011_A6E5);
-    Ok(field.attractor_iou(&pixel, search.score_points, mix_seed(stream, 0)))
+    Ok(starts
+        .iter()
+        .map(|maps| {
+            let pixel: Vec<PixelMap> = maps.iter().map(|m| to_pixel_frame(m, size)).collect();
+            field.attractor_iou(&pixel, search.score_points, mix_seed(stream, 0))
+        })
+        .collect())
 }
 
 /// `k` maps whose attractor covers the bright part of `target` (`size × size`, row 0 at the

@@ -18,7 +18,7 @@ use rand_distr::StandardNormal;
 use crate::error::{Error, Result};
 use crate::problems::em::{EmConfig, PointSet, fit};
 use crate::problems::image::collage::{
-    CollageSearch, clamp_singular_values, collage_maps, start_score,
+    CollageSearch, clamp_singular_values, collage_maps, start_scores,
 };
 use crate::problems::image::config::{InitKind, InversionConfig};
 use crate::problems::image::model::AnyModel;
@@ -96,7 +96,7 @@ pub fn em_initial_maps(
 
 /// The collage start ([`collage_maps`]) or the EM start ([`em_initial_maps`], its
 /// similitudes mirroring where `reflections`), whichever's attractor matches the target's
-/// ink better ([`start_score`]): the collage finds the arrangement of codes made of
+/// ink better ([`start_scores`]): the collage finds the arrangement of codes made of
 /// stretched and sheared maps, EM covers better a picture that is not a collage of a few
 /// copies of itself.
 pub fn collage_or_em(
@@ -109,12 +109,8 @@ pub fn collage_or_em(
     let search = CollageSearch::default();
     let collage = collage_maps(target, size, k, seed, &search)?;
     let em = em_initial_maps(target, size, k, seed, reflections)?;
-    let score = |maps: &[Affine2]| start_score(target, size, maps, seed, &search);
-    Ok(if score(&em)? > score(&collage)? {
-        em
-    } else {
-        collage
-    })
+    let scores = start_scores(target, size, &[&em, &collage], seed, &search)?;
+    Ok(if scores[0] > scores[1] { em } else { collage })
 }
 
 /// Smallest and largest singular value a map of [`moment_refine`] may take.
