@@ -56,6 +56,12 @@ enum Command {
     Sweep(cmd::sweep::Args),
     /// Merge a sweep's results into one table, aggregates, plots and a Markdown report.
     Collect(cmd::collect::Args),
+    /// Pack a sweep's finished runs into one compressed file (runs.jsonl.gz).
+    Pack(cmd::pack::Args),
+    /// Write packed runs back into run folders, and draw their pictures again.
+    Unpack(cmd::unpack::Args),
+    /// Draw a finished run folder's pictures again from its config, results and log.
+    Redraw(cmd::redraw::Args),
     /// Plot the loss landscape of a run: the objective on a 2-D slice through its code.
     Landscape(cmd::landscape::Args),
     /// Where the LPIPS weights are looked for; `weights fetch` downloads and converts them.
@@ -92,6 +98,9 @@ fn main() -> anyhow::Result<()> {
         Command::Suite(a) => cmd::suite::run(a),
         Command::Sweep(a) => cmd::sweep::run(a),
         Command::Collect(a) => cmd::collect::run(a),
+        Command::Pack(a) => cmd::pack::run(a),
+        Command::Unpack(a) => cmd::unpack::run(a),
+        Command::Redraw(a) => cmd::redraw::run(a),
         Command::Landscape(a) => cmd::landscape::run(a),
         Command::Weights(a) => cmd::weights::run(a),
         Command::Flame(a) => cmd::flame::run(a),

@@ -188,7 +188,7 @@ proptest! {
 
     #[test]
     fn code_json_never_panics(e in edits()) {
-        let seed = read("paper_repro/chaotic_splatting/results/runs/em-adam-fern-s0/code.json");
+        let seed = read("tests/fixtures/code/em-adam-fern.json");
         says_why(IfsCode::from_json(&text(&apply(&seed, &e)), Path::new("fuzz.json")))?;
     }
 
@@ -248,7 +248,7 @@ proptest! {
 #[test]
 fn the_seeds_themselves_parse() {
     // The mutations start from valid files: a fuzz run on broken seeds would test little.
-    let code = read("paper_repro/chaotic_splatting/results/runs/em-adam-fern-s0/code.json");
+    let code = read("tests/fixtures/code/em-adam-fern.json");
     IfsCode::from_json(&text(&code), Path::new("code.json")).unwrap();
     let flame = read("paper_repro/fractal_flames/results/fig4_disc/learned.flame");
     assert!(

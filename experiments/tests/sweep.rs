@@ -8,8 +8,10 @@ use std::process::Command;
 mod common;
 use common::ifslab;
 use ifslab_experiments::progress::{Progress, Silent};
+use ifslab_experiments::runs::redraw_pictures;
 use ifslab_experiments::sweep::collect::{RunState, collect};
 use ifslab_experiments::sweep::local::{RECORD_FILE, RunRecord, partial_dir, run_dir};
+use ifslab_experiments::sweep::pack::{DEFAULT_LOG_COLUMNS, Pack, pack, unpack};
 use ifslab_experiments::sweep::report::{ReportOptions, write_report};
 use ifslab_experiments::sweep::{
     Plan, PlannedRun, RunStatus, RunnerOptions, Shard, SweepConfig, run_sweep, slurm,
@@ -808,9 +810,65 @@ fn the_chaotic_splatting_sweep_is_the_protocol_its_results_ran() {
     assert!(p.retain(&[("group".into(), "nope".into())]).is_err());
 }
 
+/// A packed sweep folder is the same sweep: the runner skips its runs, `collect` tables them
+/// as it tables the folders, and `unpack` + `redraw_pictures` give back the runs' pictures.
+#[test]
+fn a_packed_sweep_is_skipped_collected_and_unpacked_as_its_folders() {
+    let tmp = tempfile::tempdir().unwrap();
+    let p = plan(
+        tmp.path(),
+        "base = \"base.toml\"\n[[axis]]\nkey = \"seed\"\nvalues = [0, 1]\n",
+    )
+    .unwrap();
+    let out = tmp.path().join("out");
+    let opts = RunnerOptions::new(1, None, Shard::ALL).unwrap();
+    run_sweep(&p, &out, &opts, &Silent, &silent).unwrap();
+    let id = p.runs[1].id.clone();
+    let render = std::fs::read(run_dir(&out, &id).join("render.png")).unwrap();
+    let zoom = std::fs::read(run_dir(&out, &id).join("zoom_strip.png")).unwrap();
+    let report = |to: &str| {
+        let dir = tmp.path().join(to);
+        write_report(&collect(&out).unwrap(), &dir, &ReportOptions::default()).unwrap();
+        dir
+    };
+    let folders = report("from_folders");
+    let keep: Vec<String> = DEFAULT_LOG_COLUMNS.iter().map(|c| c.to_string()).collect();
+    let packed = pack(&out.join("runs"), &keep, true).unwrap();
+    assert_eq!((packed.runs, packed.removed), (2, 2));
+    assert!(!run_dir(&out, &id).exists());
+    let o = run_sweep(&p, &out, &opts, &Silent, &silent).unwrap();
+    assert_eq!(o.skipped(), 2, "packed runs are finished runs");
+    let from_pack = report("from_pack");
+    for f in ["results.csv", "results.json", "aggregate_seed.csv"] {
+        assert_eq!(
+            std::fs::read_to_string(folders.join(f)).unwrap(),
+            std::fs::read_to_string(from_pack.join(f)).unwrap(),
+            "{f}"
+        );
+    }
+    // The report differs only where the pictures were: it says how to draw them.
+    let md = std::fs::read_to_string(from_pack.join("report.md")).unwrap();
+    assert!(md.contains("ifslab unpack DIR --pictures"), "{md}");
+    assert!(
+        from_pack.join("loss_by_seed.png").is_file(),
+        "loss curves from the pack"
+    );
+    let u = unpack(&out.join("runs"), std::slice::from_ref(&id)).unwrap();
+    assert_eq!(u.written, 1);
+    redraw_pictures(&run_dir(&out, &id)).unwrap();
+    assert_eq!(
+        std::fs::read(run_dir(&out, &id).join("render.png")).unwrap(),
+        render
+    );
+    assert_eq!(
+        std::fs::read(run_dir(&out, &id).join("zoom_strip.png")).unwrap(),
+        zoom
+    );
+}
+
 /// Table 3 and Table 4 of the chaotic-splatting paper are sweeps over the random suite, and
-/// the committed medium-tier runs are finished runs of each table (their ids are the runs'
-/// resolved configs), which `collect` merges whole.
+/// the committed medium-tier runs (packed: `runs.jsonl.gz`) are finished runs of each table
+/// (their ids are the runs' resolved configs), which `collect` merges whole.
 #[test]
 fn the_table_sweeps_expand_and_their_committed_runs_are_theirs() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
@@ -827,21 +885,121 @@ fn the_table_sweeps_expand_and_their_committed_runs_are_theirs() {
         let done = repro.join("results").join(folder);
         let ids: std::collections::HashSet<&str> =
             plan.runs.iter().map(|r| r.id.as_str()).collect();
-        let mut committed = 0;
-        for e in std::fs::read_dir(done.join("runs")).unwrap() {
-            let name = e.unwrap().file_name().to_string_lossy().into_owned();
-            if name.starts_with('.') {
-                continue; // a sweep's lock folder or a run under way
+        let mut committed: Vec<String> = Pack::beside(&done.join("runs"))
+            .unwrap()
+            .runs
+            .iter()
+            .map(|r| r.name.clone())
+            .collect();
+        // Folders written back by `ifslab unpack` are the same runs.
+        if let Ok(rd) = std::fs::read_dir(done.join("runs")) {
+            for e in rd {
+                let name = e.unwrap().file_name().to_string_lossy().into_owned();
+                // A sweep's lock folder or a run under way is not a run.
+                if !name.starts_with('.') && !committed.contains(&name) {
+                    committed.push(name);
+                }
             }
+        }
+        for name in &committed {
             assert!(
                 ids.contains(name.as_str()),
                 "{name} is not a run of {folder}'s sweep file"
             );
-            committed += 1;
         }
-        assert_eq!(committed, plan.runs.len(), "{folder}: committed runs");
+        assert_eq!(committed.len(), plan.runs.len(), "{folder}: committed runs");
         let c = collect(&done).unwrap();
-        assert_eq!(c.counts(), (committed, 0, 0, 0), "{folder}");
+        assert_eq!(c.counts(), (committed.len(), 0, 0, 0), "{folder}");
+        assert_eq!(c.unplanned, 0, "{folder}");
+    }
+}
+
+/// The committed reports are `collect` of the committed runs, as the READMEs regenerate
+/// them: a number of a table that no longer matches its runs fails here.
+#[test]
+fn the_committed_reports_are_collect_of_their_committed_runs() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let results = root.join("paper_repro/chaotic_splatting/results");
+    let metrics = |m: &[&str]| m.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+    let suite = metrics(&[
+        "suite.f1",
+        "suite.iou",
+        "suite.psnr",
+        "suite.ssim",
+        "suite.lpips",
+        "suite.psnr_crop",
+        "suite.ssim_crop",
+        "seconds",
+    ]);
+    let tmp = tempfile::tempdir().unwrap();
+    // The chaotic-splatting protocol's report is collect of the sweep that adopts the
+    // committed runs (README, "As a sweep").
+    let cs = tmp.path().join("cs");
+    let p = Plan::load(&root.join("paper_repro/chaotic_splatting/sweep.toml")).unwrap();
+    ifslab_experiments::sweep::local::adopt(&p, &cs, &results.join("runs")).unwrap();
+    let cases = [
+        (
+            results.join("table3_medium"),
+            results.join("table3_medium/report"),
+            ReportOptions {
+                by: vec![vec!["method".into()]],
+                metrics: suite.clone(),
+                versus: Some("ours_em_sched".into()),
+                ..ReportOptions::default()
+            },
+            vec!["report.md", "aggregate_method.csv", "paired_method.csv"],
+        ),
+        (
+            results.join("table4_medium"),
+            results.join("table4_medium/report"),
+            ReportOptions {
+                by: vec![vec!["ablation".into()]],
+                metrics: suite,
+                versus: Some("ours".into()),
+                ..ReportOptions::default()
+            },
+            vec!["report.md", "aggregate_ablation.csv", "paired_ablation.csv"],
+        ),
+        (
+            cs,
+            results.join("sweep_report"),
+            ReportOptions {
+                by: vec![
+                    vec!["group".into(), "target".into(), "strategy".into()],
+                    vec!["group".into(), "strategy".into()],
+                ],
+                metrics: metrics(&["f1", "iou", "psnr", "ssim", "lpips", "seconds"]),
+                ..ReportOptions::default()
+            },
+            vec![
+                "report.md",
+                "results.csv",
+                "aggregate_group_target_strategy.csv",
+                "aggregate_group_strategy.csv",
+            ],
+        ),
+        (
+            results.join("sweep_em_sierpinski"),
+            results.join("sweep_em_sierpinski/report"),
+            ReportOptions::default(),
+            vec!["report.md", "results.csv", "aggregate_strategy.csv"],
+        ),
+    ];
+    for (k, (dir, committed, opts, files)) in cases.iter().enumerate() {
+        let c = collect(dir).unwrap();
+        let out = tmp.path().join(format!("report{k}"));
+        write_report(&c, &out, opts).unwrap();
+        for f in files {
+            let want = std::fs::read_to_string(committed.join(f)).unwrap();
+            let got = std::fs::read_to_string(out.join(f)).unwrap();
+            assert!(
+                got == want,
+                "{}/{f} is not what collect makes of the committed runs; the first line that \
+                 differs:\n{:?}",
+                committed.display(),
+                got.lines().zip(want.lines()).find(|(a, b)| a != b)
+            );
+        }
     }
 }
 
@@ -894,13 +1052,17 @@ fn the_ifs_em_sweeps_are_its_committed_results_and_a_rerun_reproduces_one() {
     let o = run_sweep(&p, &out, &opts, &Silent, &silent).unwrap();
     assert!(o.failures().is_empty(), "{o:?}");
     let id = &p.runs[0].id;
-    let committed = repro.join("results/sweeps/fig5a/runs").join(id);
+    // The committed run is packed (`runs.jsonl.gz`).
+    let pack = Pack::beside(&repro.join("results/sweeps/fig5a/runs")).unwrap();
+    let mut committed: serde_json::Value = pack
+        .get(id)
+        .expect("the run is committed")
+        .json("summary.json")
+        .unwrap()
+        .expect("it has a summary");
+    committed.as_object_mut().unwrap().remove("seconds");
     // Every number the committed run reported is the same (later versions may report more).
-    assert_reported(
-        &summary(&committed),
-        &summary(&run_dir(&out, id)),
-        "summary",
-    );
+    assert_reported(&committed, &summary(&run_dir(&out, id)), "summary");
 }
 
 /// Every field of `old` is in `new` with the same value, recursively (objects may gain

@@ -16,6 +16,10 @@ when the re-scored foreground values equal its committed ones (the same code, su
 renderer), and is replaced atomically (temporary file, then rename).
 
     python3 paper_repro/chaotic_splatting/crop_metrics.py FIRST LAST [TABLE] [--write]   # from the repository root
+
+The committed runs are packed (`results/TABLE/runs.jsonl.gz`): write their folders back
+first with `ifslab unpack paper_repro/chaotic_splatting/results/TABLE`, and after `--write`
+pack them again with `ifslab pack paper_repro/chaotic_splatting/results/TABLE --remove`.
 """
 
 import json

@@ -23,15 +23,21 @@ for cfg in paper_repro/fractal_flames/configs/*.toml; do
   # the pictures compare.png already shows.
   rm -f "$OUT/$name/checkpoint.json" "$OUT/$name/start.json" "$OUT/$name/target.png" \
     "$OUT/$name/render.png"
-  # The learned .flame drawn by flam3's algorithm (our renderer; the layers of a stack
-  # composited), and by flam3-render itself for single flames when it is installed
-  # (flam3 has no layers: it would draw each flame of a stack on its own).
-  "$BIN" flame render "$OUT/$name/learned.flame" --composite --quality 100 \
-    -o "$OUT/$name/flame_render.png" 2>/dev/null
-  if command -v flam3-render >/dev/null 2>&1 \
-    && [ "$(grep -c "<flame " "$OUT/$name/learned.flame")" = 1 ]; then
-    (cd "$OUT/$name" && env in=learned.flame out=flam3.png nthreads=2 isaac_seed=1 \
-      flam3-render >/dev/null 2>&1 || echo "flam3-render failed on $name")
+done
+# The pictures drawn from a finished run's files, where they are missing (the committed
+# results keep none of them): the loss plot from log.csv, the learned .flame drawn by flam3's
+# algorithm (our renderer; the layers of a stack composited), and by flam3-render itself for
+# single flames when it is installed (flam3 has no layers: it would draw each flame of a
+# stack on its own; its pictures differ from run to run by its sampling noise).
+for cfg in paper_repro/fractal_flames/configs/*.toml; do
+  dir="$OUT/$(basename "$cfg" .toml)"
+  [ -f "$dir/loss.png" ] || "$BIN" redraw "$dir" >/dev/null
+  [ -f "$dir/flame_render.png" ] || "$BIN" flame render "$dir/learned.flame" --composite \
+    --quality 100 -o "$dir/flame_render.png" 2>/dev/null
+  if [ ! -f "$dir/flam3.png" ] && command -v flam3-render >/dev/null 2>&1 \
+    && [ "$(grep -c "<flame " "$dir/learned.flame")" = 1 ]; then
+    (cd "$dir" && env in=learned.flame out=flam3.png nthreads=2 isaac_seed=1 \
+      flam3-render >/dev/null 2>&1 || echo "flam3-render failed on $dir")
   fi
 done
 # One table of every run's numbers (from each summary.json).

@@ -7,6 +7,8 @@ pub mod fit_points;
 pub mod flame;
 pub mod invert;
 pub mod landscape;
+pub mod pack;
+pub mod redraw;
 pub mod render;
 pub mod run;
 pub mod sample;
@@ -14,6 +16,7 @@ pub mod sdf;
 pub mod suite;
 pub mod sweep;
 pub mod texture;
+pub mod unpack;
 pub mod weights;
 
 pub use ifslab_experiments::codes::resolve_code;

@@ -21,6 +21,8 @@ pub struct Args {
     pub command: Command,
 }
 
+// Parsed once per process: the size of the larger variant costs nothing.
+#[allow(clippy::large_enum_variant)]
 #[derive(clap::Subcommand, Debug)]
 pub enum Command {
     /// Fit a pattern's control points to a target image (Adam on multi-scale MSE).
@@ -192,7 +194,7 @@ fn flag_table(a: &FitArgs) -> anyhow::Result<toml::Table> {
     let mut t = super::Flags::default();
     t.set(
         "polarity",
-        a.polarity.map(|p| toml::Value::try_from(p)).transpose()?,
+        a.polarity.map(toml::Value::try_from).transpose()?,
     );
     t.set("depth", super::count(a.depth));
     t.set("truth", a.truth.clone().map(toml::Value::String));

@@ -43,8 +43,8 @@ pub struct Args {
     #[arg(long, value_name = "AXIS=LABEL", value_parser = parse_only)]
     pub only: Vec<(String, String)>,
     /// Take the finished run folders in this folder (made by `ifslab run` or an older
-    /// script) whose configs are runs of the sweep into the output folder, instead of
-    /// running.
+    /// script), and the runs packed beside it in RUNS_DIR.jsonl.gz, whose configs are runs of
+    /// the sweep into the output folder, instead of running.
     #[arg(long, value_name = "RUNS_DIR")]
     pub adopt: Option<PathBuf>,
     /// Run even where the LPIPS weights are missing. Without this flag a sweep whose runs
@@ -89,10 +89,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             .filter(|(k, _)| shard.contains(*k))
             .map(|(_, r)| r)
             .collect();
-        let done = mine
-            .iter()
-            .filter(|r| local::is_finished(&out, &r.id))
-            .count();
+        let finished = local::FinishedRuns::of(&out)?;
+        let done = mine.iter().filter(|r| finished.contains(&r.id)).count();
         let partial = mine
             .iter()
             .filter(|r| local::partial_dir(&out, &r.id).is_dir())
@@ -124,11 +122,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         if !a.without_lpips {
             // What the array tasks would run, on machines that share this one's files: the
             // unfinished runs of every shard. (A local sweep checks its own in `run_sweep`.)
-            check_lpips_weights(
-                plan.runs
-                    .iter()
-                    .filter(|r| !local::is_finished(&out, &r.id)),
-            )?;
+            let finished = local::FinishedRuns::of(&out)?;
+            check_lpips_weights(plan.runs.iter().filter(|r| !finished.contains(&r.id)))?;
         }
         let exe = std::env::current_exe()?;
         let extra: Vec<String> = if a.without_lpips {

@@ -369,6 +369,67 @@ fn write_outputs(
     Ok((metrics, lpips_metric_note))
 }
 
+/// Draws a finished run's pictures again from its config and `code.json` — a folder
+/// written back from a pack, say ([`crate::sweep::pack`]): `render.png`, `target.png`,
+/// `truth.png` (code and suite targets, or the `target.truth` code), `zoom_strip.png`, and
+/// `loss.png` where the folder has a `log.csv`. The renders are seeded as the run's were, so
+/// they are its pictures. Returns the files written.
+pub fn redraw_pictures(cfg: &InversionConfig, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    let size = cfg.target.size;
+    let code_path = dir.join("code.json");
+    let code = IfsCode::load(&code_path)
+        .with_context(|| format!("loading the recovered code {}", code_path.display()))?;
+    let maps = code
+        .affine2()
+        .with_context(|| format!("{} must be a 2-D code", code_path.display()))?;
+    let probs = code.evaluation_probabilities()?;
+    let mut written = Vec::new();
+    let final_render = render(&maps, &probs, &eval_config(size, cfg.seed), None)?;
+    final_render.save_png(&dir.join("render.png"), BitDepth::Eight, false)?;
+    written.push(dir.join("render.png"));
+    let target = run_target(cfg, dir)?;
+    save_grey_png(
+        &dir.join("target.png"),
+        &target,
+        size as u32,
+        size as u32,
+        BitDepth::Eight,
+        false,
+    )?;
+    written.push(dir.join("target.png"));
+    if cfg.target.code.is_some() || cfg.target.suite.is_some() {
+        let truth = ground_truth(cfg, &target)?;
+        save_grey_png(
+            &dir.join("truth.png"),
+            &truth,
+            size as u32,
+            size as u32,
+            BitDepth::Eight,
+            false,
+        )?;
+        written.push(dir.join("truth.png"));
+    }
+    if let Some(spec) = &cfg.target.truth {
+        truth_score(spec, &maps, cfg.seed, dir)?;
+        written.push(dir.join("truth.png"));
+    }
+    zoom_strip(
+        &maps,
+        &probs,
+        &final_render.stats.window,
+        &dir.join("zoom_strip.png"),
+        cfg.seed,
+    )?;
+    written.push(dir.join("zoom_strip.png"));
+    let log = dir.join(crate::sweep::pack::LOG_FILE);
+    if log.is_file() {
+        loss_plot(&log, &dir.join("loss.png"))?;
+        written.push(dir.join("loss.png"));
+    }
+    written.dedup();
+    Ok(written)
+}
+
 /// The LPIPS network for scoring `size²` renders, or why there is none.
 fn lpips_for_metrics(size: usize) -> anyhow::Result<(Option<Lpips>, Option<String>)> {
     let rect = border_crop_rect(size, size, EVAL_BORDER_FRACTION)?;

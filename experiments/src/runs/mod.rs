@@ -12,7 +12,8 @@
 //!   render, loss plot, summary);
 //! - [`texture`]: fractal-coding texture upsampling, and the paper's tables and figures
 //!   ([`texture::repro`]);
-//! - [`lock`]: one process per run folder; [`table`]: configs as TOML tables.
+//! - [`lock`]: one process per run folder; [`table`]: configs as TOML tables;
+//! - [`redraw_pictures`]: a finished run's pictures drawn again (packed runs keep none).
 
 pub mod config;
 pub mod flame;
@@ -25,4 +26,34 @@ pub mod table;
 pub mod texture;
 
 pub use config::{RunConfig, RunReport};
+
+use std::path::{Path, PathBuf};
+
+use anyhow::bail;
+
+/// Draws the pictures of a finished run folder again from its `config.toml`, results and
+/// log (a folder written back from a pack: [`crate::sweep::pack`]); returns the files
+/// written. Image inversions get every picture ([`inversion::redraw_pictures`]); a learned
+/// flame its `loss.png` (its renders need the learned stack, which only its run has); a run
+/// of another problem is quick to run again, which is what the error says.
+pub fn redraw_pictures(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    match RunConfig::load_resolved(&dir.join(inversion::CONFIG_FILE))? {
+        RunConfig::Image(cfg) => inversion::redraw_pictures(&cfg, dir),
+        RunConfig::Flame(_) => {
+            let log = dir.join(crate::sweep::pack::LOG_FILE);
+            if !log.is_file() {
+                bail!("{}: no log.csv to draw loss.png from", dir.display());
+            }
+            inversion::loss_plot(&log, &dir.join("loss.png"))?;
+            Ok(vec![dir.join("loss.png")])
+        }
+        other => bail!(
+            "{}: the pictures of a {} run are drawn by running it again \
+             (`ifslab run {}/config.toml -o NEW_FOLDER`, or the sweep into a new folder)",
+            dir.display(),
+            other.problem(),
+            dir.display()
+        ),
+    }
+}
 pub use lock::{LOCK_FILE, RunLock, lock_run_dir};

@@ -2,9 +2,10 @@
 //! JSON, one row per run, so per seed), aggregated by any axis or combination of axes
 //! (mean, standard deviation, count); the report drawn from it is `report.rs`'s.
 //!
-//! Collect reads only the output folder (`sweep.json` and `runs/`), so it works on the
-//! merged folder of any number of shards or array tasks, finished or not: runs not finished
-//! yet are rows with their status and no numbers.
+//! Collect reads only the output folder (`sweep.json`, `runs/` and the packed runs of
+//! `runs.jsonl.gz`, [`super::pack`]), so it works on the merged folder of any number of
+//! shards or array tasks, finished or not: runs not finished yet are rows with their status
+//! and no numbers.
 
 use std::collections::BTreeSet;
 use std::fmt::Write as _;
@@ -15,6 +16,7 @@ use serde_json::{Map, Value};
 
 use super::expand::PlanIndex;
 use super::local::{ERROR_FILE, PLAN_FILE, RECORD_FILE, RUNS_DIR, RunRecord, partial_dir, run_dir};
+use super::pack::{LOG_FILE, LogColumns, Pack};
 
 /// Columns that measure wall time, not results: the only ones that differ between two
 /// runs of the same sweep (here or on a cluster, in one go or resumed).
@@ -65,8 +67,30 @@ pub struct Row {
     pub summary: Map<String, Value>,
     /// Its `run.json` (finished runs).
     pub record: Option<RunRecord>,
-    /// Its folder (finished runs).
+    /// Its folder (finished runs that have one).
     pub dir: Option<PathBuf>,
+    /// Its loss curve, when the run was read from the pack (a folder's is read from its
+    /// `log.csv` when it is plotted).
+    pub packed_curve: Option<Vec<(f64, f64)>>,
+    /// The files its pack left out (pictures), when it was read from the pack.
+    pub left_out: Vec<String>,
+}
+
+impl Row {
+    /// Whether the run was read from the sweep's pack rather than a folder.
+    pub fn is_packed(&self) -> bool {
+        self.state == RunState::Finished && self.dir.is_none()
+    }
+
+    /// Its `loss` against the iteration: from its folder's `log.csv`, or the pack's columns.
+    pub fn loss_curve(&self) -> Option<Vec<(f64, f64)>> {
+        match &self.dir {
+            Some(d) => {
+                LogColumns::parse(&std::fs::read_to_string(d.join(LOG_FILE)).ok()?)?.curve("loss")
+            }
+            None => self.packed_curve.clone(),
+        }
+    }
 }
 
 /// Every planned run of a sweep folder.
@@ -146,12 +170,15 @@ pub fn collect(dir: &Path) -> anyhow::Result<Collected> {
     })?;
     let plan: PlanIndex = serde_json::from_str(&text)
         .with_context(|| format!("{} is not a sweep index", plan_path.display()))?;
+    let pack = Pack::beside(&dir.join(RUNS_DIR))?;
     let mut rows = Vec::new();
     let mut metrics: Vec<String> = Vec::new();
     let mut fields: Vec<String> = Vec::new();
     for r in &plan.runs {
         let done = run_dir(dir, &r.id);
         let partial = partial_dir(dir, &r.id);
+        let mut packed_curve = None;
+        let mut left_out = Vec::new();
         let (state, summary, record, run_folder) = if done.join(RECORD_FILE).is_file() {
             let record: RunRecord = read_json(&done.join(RECORD_FILE))?;
             let summary_path = done.join("summary.json");
@@ -161,6 +188,16 @@ pub fn collect(dir: &Path) -> anyhow::Result<Collected> {
                 flatten_json("", &v, &mut summary);
             }
             (RunState::Finished, summary, Some(record), Some(done))
+        } else if let Some(p) = pack.get(&r.id)
+            && let Some(record) = p.json::<RunRecord>(RECORD_FILE)?
+        {
+            let mut summary = Map::new();
+            if let Some(v) = p.json::<Value>("summary.json")? {
+                flatten_json("", &v, &mut summary);
+            }
+            packed_curve = p.loss_curve();
+            left_out.clone_from(&p.left_out);
+            (RunState::Finished, summary, Some(record), None)
         } else if partial.join(ERROR_FILE).is_file() {
             let e = std::fs::read_to_string(partial.join(ERROR_FILE)).unwrap_or_default();
             (
@@ -191,21 +228,27 @@ pub fn collect(dir: &Path) -> anyhow::Result<Collected> {
             summary,
             record,
             dir: run_folder,
+            packed_curve,
+            left_out,
         });
     }
     let planned: BTreeSet<&str> = plan.runs.iter().map(|r| r.id.as_str()).collect();
-    let unplanned = std::fs::read_dir(dir.join(RUNS_DIR))
+    let mut unplanned: BTreeSet<String> = std::fs::read_dir(dir.join(RUNS_DIR))
         .map(|rd| {
             rd.filter_map(Result::ok)
-                .filter(|e| {
-                    let n = e.file_name().to_string_lossy().into_owned();
-                    !n.starts_with('.')
-                        && !planned.contains(n.as_str())
-                        && e.path().join(RECORD_FILE).is_file()
-                })
-                .count()
+                .filter(|e| e.path().join(RECORD_FILE).is_file())
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .filter(|n| !n.starts_with('.') && !planned.contains(n.as_str()))
+                .collect()
         })
-        .unwrap_or(0);
+        .unwrap_or_default();
+    unplanned.extend(
+        pack.runs
+            .iter()
+            .filter(|p| !planned.contains(p.name.as_str()) && p.file(RECORD_FILE).is_some())
+            .map(|p| p.name.clone()),
+    );
+    let unplanned = unplanned.len();
     Ok(Collected {
         name: plan.name,
         dir: dir.to_path_buf(),

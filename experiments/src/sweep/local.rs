@@ -4,8 +4,10 @@
 //! A run works in `runs/.ID.partial/` and becomes `runs/ID/` by one rename once its
 //! `run.json` is written, so a crashed or cancelled task never leaves a folder that looks
 //! finished. A lock file (`runs/.locks/ID`, released by the kernel when its process dies)
-//! keeps two processes off the same run.
+//! keeps two processes off the same run. Runs packed into `runs.jsonl.gz`
+//! ([`super::pack`]) are finished runs too.
 
+use std::collections::HashSet;
 use std::fs::{File, TryLockError};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
@@ -16,6 +18,7 @@ use anyhow::{Context, bail};
 use serde::{Deserialize, Serialize};
 
 use super::expand::{Plan, PlannedRun};
+use super::pack::{self, Pack, PackedRun};
 use super::shard::Shard;
 use crate::progress::Progress;
 
@@ -38,9 +41,38 @@ pub fn partial_dir(out: &Path, id: &str) -> PathBuf {
     out.join(RUNS_DIR).join(format!(".{id}.partial"))
 }
 
-/// Whether the run with this id is finished in `out`.
+/// Whether the run with this id is finished in a folder of its own in `out`.
 pub fn is_finished(out: &Path, id: &str) -> bool {
     run_dir(out, id).join(RECORD_FILE).is_file()
+}
+
+/// The runs finished in a sweep folder: its run folders and the runs of its pack
+/// (`runs.jsonl.gz`), read once.
+#[derive(Clone, Debug)]
+pub struct FinishedRuns {
+    out: PathBuf,
+    packed: HashSet<String>,
+}
+
+impl FinishedRuns {
+    /// Looks at the sweep folder `out` (a folder without runs or pack has none).
+    pub fn of(out: &Path) -> anyhow::Result<Self> {
+        let pack = Pack::beside(&out.join(RUNS_DIR))?;
+        Ok(FinishedRuns {
+            out: out.to_path_buf(),
+            packed: pack
+                .runs
+                .iter()
+                .filter(|r| r.file(RECORD_FILE).is_some())
+                .map(|r| r.name.clone())
+                .collect(),
+        })
+    }
+
+    /// Whether the run with this id is finished, in its folder or packed.
+    pub fn contains(&self, id: &str) -> bool {
+        self.packed.contains(id) || is_finished(&self.out, id)
+    }
 }
 
 /// What a finished run folder's `run.json` says.
@@ -210,8 +242,9 @@ pub fn run_sweep(
         .collect();
     let mut outcome = SweepOutcome::default();
     let mut todo = Vec::new();
+    let finished = FinishedRuns::of(out)?;
     for r in mine {
-        if is_finished(out, &r.id) {
+        if finished.contains(&r.id) {
             outcome.runs.push((r.index, RunStatus::Skipped));
         } else {
             todo.push(r);
@@ -378,25 +411,61 @@ pub struct Adopted {
 }
 
 /// Takes finished run folders made outside the sweep (`ifslab run`, an older script) into
-/// the sweep folder: each folder of `from` whose `config.toml` resolves to one of the plan's
-/// runs (same id) and which has a `summary.json` is copied to `runs/ID/` as a finished run,
-/// so that `collect` tables it and the sweep does not run it again. Folders of other
-/// configs (other settings, or defaults that changed since) are left out and listed.
+/// the sweep folder: each folder of `from` — and each run packed in `from.jsonl.gz` beside it
+/// that has no folder there ([`super::pack`]; `from` may name the pack itself) — whose
+/// `config.toml` resolves to one of the plan's runs (same id) and which has a `summary.json`
+/// is copied to `runs/ID/` as a finished run, so that `collect` tables it and the sweep does
+/// not run it again. Folders of other configs (other settings, or defaults that changed
+/// since) are left out and listed.
 pub fn adopt(plan: &Plan, out: &Path, from: &Path) -> anyhow::Result<Adopted> {
     write_plan(plan, out)?;
     let sweep_dir = plan.source.parent().unwrap_or(Path::new("/"));
-    let mut dirs: Vec<PathBuf> = std::fs::read_dir(from)
-        .with_context(|| format!("reading {}", from.display()))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.is_dir())
-        .collect();
-    dirs.sort();
+    let folder = pack::runs_folder(from);
+    let packed = Pack::beside(&folder)?;
+    let mut candidates: Vec<(PathBuf, Option<&PackedRun>)> = Vec::new();
+    if folder.is_dir() {
+        for e in
+            std::fs::read_dir(&folder).with_context(|| format!("reading {}", folder.display()))?
+        {
+            let p = e?.path();
+            if p.is_dir() {
+                candidates.push((p, None));
+            }
+        }
+    } else if packed.runs.is_empty() {
+        bail!(
+            "{} is neither a folder of runs nor beside a pack of them ({})",
+            folder.display(),
+            pack::pack_path(&folder).display()
+        );
+    }
+    for r in &packed.runs {
+        let p = folder.join(&r.name);
+        if !p.is_dir() {
+            candidates.push((p, Some(r)));
+        }
+    }
+    candidates.sort_by(|a, b| a.0.cmp(&b.0));
+    let finished = FinishedRuns::of(out)?;
+    // A packed run is written out here to be read like a folder.
+    let staging = out.join(RUNS_DIR).join(".adopting");
     let mut result = Adopted::default();
-    for d in dirs {
+    for (source, packed_run) in candidates {
+        let d = match packed_run {
+            None => source.clone(),
+            Some(r) => {
+                if staging.exists() {
+                    std::fs::remove_dir_all(&staging)
+                        .with_context(|| format!("clearing {}", staging.display()))?;
+                }
+                r.write_folder(&staging)?;
+                staging.clone()
+            }
+        };
         let cfg_path = d.join("config.toml");
         if !cfg_path.is_file() || !d.join("summary.json").is_file() {
             result.unmatched.push((
-                d,
+                source,
                 "no config.toml and summary.json: not a finished run".into(),
             ));
             continue;
@@ -404,17 +473,18 @@ pub fn adopt(plan: &Plan, out: &Path, from: &Path) -> anyhow::Result<Adopted> {
         let id = match crate::runs::RunConfig::load_resolved(&cfg_path).and_then(|c| c.to_table()) {
             Ok(t) => super::expand::run_id(&t, sweep_dir),
             Err(e) => {
-                result.unmatched.push((d, format!("{e:#}")));
+                result.unmatched.push((source, format!("{e:#}")));
                 continue;
             }
         };
         let Some(r) = plan.runs.iter().find(|r| r.id == id) else {
-            result
-                .unmatched
-                .push((d, format!("its config (id {id}) is no run of the sweep")));
+            result.unmatched.push((
+                source,
+                format!("its config (id {id}) is no run of the sweep"),
+            ));
             continue;
         };
-        if is_finished(out, &id) {
+        if finished.contains(&id) {
             result.already += 1;
             continue;
         }
@@ -423,18 +493,28 @@ pub fn adopt(plan: &Plan, out: &Path, from: &Path) -> anyhow::Result<Adopted> {
             std::fs::remove_dir_all(&partial)
                 .with_context(|| format!("clearing {}", partial.display()))?;
         }
-        copy_dir(&d, &partial)?;
+        if packed_run.is_some() {
+            std::fs::rename(&d, &partial)
+                .with_context(|| format!("moving {} to {}", d.display(), partial.display()))?;
+        } else {
+            copy_dir(&d, &partial)?;
+        }
         let summary: serde_json::Value = serde_json::from_slice(
-            &std::fs::read(d.join("summary.json"))
-                .with_context(|| format!("reading {}", d.join("summary.json").display()))?,
+            &std::fs::read(partial.join("summary.json"))
+                .with_context(|| format!("reading {}", source.join("summary.json").display()))?,
         )
-        .with_context(|| format!("{} is not valid JSON", d.join("summary.json").display()))?;
+        .with_context(|| {
+            format!(
+                "{} is not valid JSON",
+                source.join("summary.json").display()
+            )
+        })?;
         let record = RunRecord {
             id: id.clone(),
             name: r.name.clone(),
             problem: r.config.problem().into(),
             labels: r.labels.clone(),
-            headline: format!("adopted from {}", d.display()),
+            headline: format!("adopted from {}", source.display()),
             seconds: summary["seconds"].as_f64().unwrap_or(f64::NAN),
             resumed: false,
             threads: 0,
@@ -445,7 +525,11 @@ pub fn adopt(plan: &Plan, out: &Path, from: &Path) -> anyhow::Result<Adopted> {
         )?;
         std::fs::rename(&partial, run_dir(out, &id))
             .with_context(|| format!("moving {} into place", partial.display()))?;
-        result.adopted.push((r.index, d));
+        result.adopted.push((r.index, source));
+    }
+    if staging.exists() {
+        std::fs::remove_dir_all(&staging)
+            .with_context(|| format!("clearing {}", staging.display()))?;
     }
     Ok(result)
 }

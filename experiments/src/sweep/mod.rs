@@ -10,7 +10,9 @@
 //!   folders);
 //! - [`slurm`]: the job-array script and its submission;
 //! - [`collect`]: every run's summary in one table, aggregated, with plots and a Markdown
-//!   report.
+//!   report;
+//! - [`pack`]: finished runs in one compressed file (`runs.jsonl.gz`), the compact form
+//!   committed results are kept in, read by `collect`, the runner and `--adopt` as folders are.
 //!
 //! Sweeps know runs only through [`crate::runs::RunConfig`], so every problem `ifslab run`
 //! accepts can be swept.
@@ -19,6 +21,7 @@ pub mod collect;
 pub mod config;
 pub mod expand;
 pub mod local;
+pub mod pack;
 pub mod paired;
 pub mod report;
 pub mod shard;
@@ -26,5 +29,7 @@ pub mod slurm;
 
 pub use config::SweepConfig;
 pub use expand::{Plan, PlannedRun};
-pub use local::{RunStatus, RunnerOptions, SweepOutcome, check_lpips_weights, run_sweep};
+pub use local::{
+    FinishedRuns, RunStatus, RunnerOptions, SweepOutcome, check_lpips_weights, run_sweep,
+};
 pub use shard::Shard;

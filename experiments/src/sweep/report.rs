@@ -221,6 +221,19 @@ pub fn write_report(c: &Collected, out: &Path, opts: &ReportOptions) -> anyhow::
             md,
             "\n## Targets and results\n\n![targets and results]({file})"
         );
+    } else if c.rows.iter().any(|r| {
+        r.is_packed()
+            && r.left_out
+                .iter()
+                .any(|f| GRID_PICTURES.contains(&f.as_str()))
+    }) {
+        let _ = writeln!(
+            md,
+            "\n## Targets and results\n\nThe runs are packed without their pictures \
+             (`runs.jsonl.gz`): `ifslab unpack DIR --pictures` writes their folders back and \
+             draws an image inversion's again (other problems' runs are drawn by running them \
+             again), and `ifslab collect` then shows them here."
+        );
     }
     let failures: Vec<&Row> = c
         .rows
@@ -286,21 +299,9 @@ fn file_word(s: &str) -> String {
         .collect()
 }
 
-/// The `loss` column of a run's `log.csv` against its first column (the iteration).
-fn loss_curve(dir: &Path) -> Option<Vec<(f64, f64)>> {
-    let text = std::fs::read_to_string(dir.join("log.csv")).ok()?;
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.next()?.split(',').collect();
-    let col = header.iter().position(|h| *h == "loss")?;
-    let pts: Vec<(f64, f64)> = lines
-        .filter_map(|l| {
-            let v: Vec<&str> = l.split(',').collect();
-            Some((v.first()?.parse().ok()?, v.get(col)?.parse().ok()?))
-        })
-        .filter(|&(_, y): &(f64, f64)| y.is_finite() && y > 0.0)
-        .collect();
-    (!pts.is_empty()).then_some(pts)
-}
+/// The pictures of a run folder the grid shows: its target (the truth where there is one)
+/// and its result.
+const GRID_PICTURES: [&str; 3] = ["truth.png", "target.png", "render.png"];
 
 /// A run's loss curve with the position of its label on the axis.
 type Curve<'a> = (usize, &'a Row, Vec<(f64, f64)>);
@@ -318,7 +319,7 @@ fn loss_curves(
         .rows
         .iter()
         .filter_map(|r| {
-            let curve = loss_curve(r.dir.as_deref()?)?;
+            let curve = r.loss_curve()?;
             Some((cats.iter().position(|x| *x == c.key(group, r))?, r, curve))
         })
         .collect();
@@ -382,8 +383,9 @@ fn picture_grid(c: &Collected, path: &Path, max: usize) -> anyhow::Result<Option
     let mut rows: Vec<(String, Option<GrayImage>, Option<GrayImage>)> = Vec::new();
     for r in c.rows.iter().filter(|r| r.dir.is_some()).take(max) {
         let d = r.dir.as_deref().unwrap_or(Path::new(""));
-        let target = load(d.join("truth.png")).or_else(|| load(d.join("target.png")));
-        let result = load(d.join("render.png"));
+        let [truth, target, result] = GRID_PICTURES.map(|f| d.join(f));
+        let target = load(truth).or_else(|| load(target));
+        let result = load(result);
         if target.is_some() || result.is_some() {
             rows.push((r.name.clone(), target, result));
         }

@@ -333,8 +333,8 @@ impl PointsConfig {
                 ("reorient_every", self.reorient_every.map(|v| v != paper.3)),
                 ("recentre", self.recentre.map(|v| v != paper.4)),
                 ("update", self.update.map(|v| v != paper.5)),
-                ("reflections", self.reflections.map(|v| v)),
-                ("trim_outliers", self.trim_outliers.map(|v| v)),
+                ("reflections", self.reflections),
+                ("trim_outliers", self.trim_outliers),
             ];
             if let Some((name, _)) = given.iter().find(|(_, differs)| *differs == Some(true)) {
                 bail!(

@@ -1,0 +1,572 @@
+//! Finished runs in one compressed file: the compact form committed results are kept in.
+//!
+//! A folder of finished run folders `X/` packs into `X.jsonl.gz` beside it (a sweep folder's
+//! `runs/` into `runs.jsonl.gz`): gzip'd JSON lines, a header, then one line per run holding
+//! its text files verbatim (`config.toml`, `run.json`, `summary.json`, the codes, …) and its
+//! `log.csv` cut to the iteration and a few columns ([`DEFAULT_LOG_COLUMNS`]) rounded to
+//! [`LOG_DIGITS`] significant digits. Pictures and other binary files are left out and
+//! listed: they are drawn again from the code and the config
+//! ([`crate::runs::redraw_pictures`], `ifslab unpack --pictures`).
+//!
+//! A packed run is a finished run: `collect` tables it (its loss curve from the packed
+//! columns), `sweep` skips it and `sweep --adopt X` takes it in as it takes a folder of `X/`;
+//! [`unpack`] writes the folders back. A run folder beside the pack wins over the packed copy.
+
+use std::collections::{BTreeMap, HashSet};
+use std::io::{BufRead, BufReader, Write};
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, bail};
+use serde::{Deserialize, Serialize};
+
+/// The format named in a pack's header line.
+pub const PACK_FORMAT: &str = "ifslab-runs/1";
+/// The suffix of a pack: `X/` packs into `X.jsonl.gz`.
+pub const PACK_SUFFIX: &str = ".jsonl.gz";
+/// The log a run writes, kept as columns.
+pub const LOG_FILE: &str = "log.csv";
+/// Significant digits the packed log columns keep (the first column, the iteration, is exact).
+pub const LOG_DIGITS: usize = 5;
+/// The log columns kept besides the first (the iteration): what the report plots and what
+/// the chaotic-splatting README reads from the logs.
+pub const DEFAULT_LOG_COLUMNS: &[&str] = &["loss", "anneal_accepted"];
+/// Files kept verbatim, by extension; anything else (pictures, `target.npy`, checkpoints) is
+/// left out.
+const TEXT_EXTENSIONS: &[&str] = &["json", "toml", "csv", "txt", "flame", "md"];
+
+/// The first line of a pack.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+struct Header {
+    format: String,
+    runs: usize,
+    log_digits: usize,
+    note: String,
+}
+
+/// A numeric CSV log as columns (`None`: an empty or non-numeric cell, NaN included).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct LogColumns {
+    /// Column names, the iteration first.
+    pub columns: Vec<String>,
+    /// One list of values per column.
+    pub values: Vec<Vec<Option<f64>>>,
+}
+
+impl LogColumns {
+    /// Reads a CSV log with a header line; rows of the wrong width are skipped.
+    pub fn parse(text: &str) -> Option<LogColumns> {
+        let mut lines = text.lines();
+        let columns: Vec<String> = lines.next()?.split(',').map(str::to_owned).collect();
+        let mut values = vec![Vec::new(); columns.len()];
+        for l in lines {
+            let cells: Vec<&str> = l.split(',').collect();
+            if cells.len() != columns.len() {
+                continue;
+            }
+            for (col, c) in values.iter_mut().zip(cells) {
+                col.push(c.trim().parse::<f64>().ok().filter(|v| !v.is_nan()));
+            }
+        }
+        Some(LogColumns { columns, values })
+    }
+
+    /// The first column and the named ones that exist, the latter rounded to `digits`
+    /// significant digits.
+    pub fn compact(&self, keep: &[String], digits: usize) -> LogColumns {
+        let mut out = LogColumns {
+            columns: Vec::new(),
+            values: Vec::new(),
+        };
+        for (k, (name, vals)) in self.columns.iter().zip(&self.values).enumerate() {
+            if k == 0 {
+                out.columns.push(name.clone());
+                out.values.push(vals.clone());
+            } else if keep.contains(name) {
+                out.columns.push(name.clone());
+                out.values.push(
+                    vals.iter()
+                        .map(|v| v.map(|x| round_sig(x, digits)))
+                        .collect(),
+                );
+            }
+        }
+        out
+    }
+
+    /// The log as CSV again (missing cells as `NaN`, as the run wrote them).
+    pub fn to_csv(&self) -> String {
+        let mut s = self.columns.join(",");
+        s.push('\n');
+        let rows = self.values.first().map_or(0, Vec::len);
+        for i in 0..rows {
+            let cells: Vec<String> = self
+                .values
+                .iter()
+                .map(|c| c[i].map_or_else(|| "NaN".to_string(), |v| v.to_string()))
+                .collect();
+            s.push_str(&cells.join(","));
+            s.push('\n');
+        }
+        s
+    }
+
+    /// A column against the first (the iteration), where both are numbers and the value is
+    /// positive and finite (what a log-scale plot can show); `None` without such a point.
+    pub fn curve(&self, column: &str) -> Option<Vec<(f64, f64)>> {
+        let c = self.columns.iter().position(|n| n == column)?;
+        let pts: Vec<(f64, f64)> = self.values[0]
+            .iter()
+            .zip(&self.values[c])
+            .filter_map(|(x, y)| Some(((*x)?, (*y)?)))
+            .filter(|&(_, y)| y.is_finite() && y > 0.0)
+            .collect();
+        (!pts.is_empty()).then_some(pts)
+    }
+}
+
+/// `x` to `digits` significant digits.
+pub fn round_sig(x: f64, digits: usize) -> f64 {
+    if !x.is_finite() || x == 0.0 || digits == 0 {
+        return x;
+    }
+    format!("{x:.*e}", digits - 1).parse().unwrap_or(x)
+}
+
+/// One finished run in a pack.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct PackedRun {
+    /// Its folder's name (a sweep run's id).
+    pub name: String,
+    /// Its text files, by path inside the folder, verbatim.
+    pub files: BTreeMap<String, String>,
+    /// Its `log.csv`, compacted.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub log: Option<LogColumns>,
+    /// The files of the folder that were not kept (pictures, binary files).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub left_out: Vec<String>,
+}
+
+impl PackedRun {
+    /// Reads a run folder: text files verbatim, `log.csv` compacted to `keep` columns.
+    pub fn from_folder(dir: &Path, keep: &[String]) -> anyhow::Result<PackedRun> {
+        let name = dir
+            .file_name()
+            .with_context(|| format!("{} has no folder name", dir.display()))?
+            .to_string_lossy()
+            .into_owned();
+        let mut run = PackedRun {
+            name,
+            files: BTreeMap::new(),
+            log: None,
+            left_out: Vec::new(),
+        };
+        let mut paths = Vec::new();
+        walk(dir, dir, &mut paths)?;
+        paths.sort();
+        for rel in paths {
+            let path = dir.join(&rel);
+            let text = is_text(&rel)
+                .then(|| std::fs::read_to_string(&path).ok())
+                .flatten();
+            match text {
+                Some(t) if rel == LOG_FILE => match LogColumns::parse(&t) {
+                    Some(log) => run.log = Some(log.compact(keep, LOG_DIGITS)),
+                    None => run.left_out.push(rel),
+                },
+                Some(t) => {
+                    run.files.insert(rel, t);
+                }
+                None => run.left_out.push(rel),
+            }
+        }
+        Ok(run)
+    }
+
+    /// A text file of the run.
+    pub fn file(&self, name: &str) -> Option<&str> {
+        self.files.get(name).map(String::as_str)
+    }
+
+    /// A JSON file of the run, parsed; `None` when the run has none.
+    pub fn json<T: serde::de::DeserializeOwned>(&self, name: &str) -> anyhow::Result<Option<T>> {
+        self.file(name)
+            .map(|t| {
+                serde_json::from_str(t)
+                    .with_context(|| format!("{name} of the packed run {} is not valid", self.name))
+            })
+            .transpose()
+    }
+
+    /// Its loss against the iteration, from the packed log.
+    pub fn loss_curve(&self) -> Option<Vec<(f64, f64)>> {
+        self.log.as_ref()?.curve("loss")
+    }
+
+    /// Writes the run's folder: its text files and the compacted `log.csv` (pictures are
+    /// [`crate::runs::redraw_pictures`]'s).
+    pub fn write_folder(&self, dir: &Path) -> anyhow::Result<()> {
+        for (rel, text) in &self.files {
+            let path = dir.join(rel);
+            if let Some(parent) = path.parent() {
+                std::fs::create_dir_all(parent)
+                    .with_context(|| format!("creating {}", parent.display()))?;
+            }
+            ifslab::io::write_atomic(&path, text.as_bytes())?;
+        }
+        if let Some(log) = &self.log {
+            std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+            ifslab::io::write_atomic(&dir.join(LOG_FILE), log.to_csv().as_bytes())?;
+        }
+        Ok(())
+    }
+}
+
+fn is_text(rel: &str) -> bool {
+    Path::new(rel)
+        .extension()
+        .is_some_and(|e| TEXT_EXTENSIONS.contains(&e.to_string_lossy().as_ref()))
+}
+
+/// Files under `dir`, relative to `root` with `/` separators; dot files and folders (locks)
+/// left out.
+fn walk(root: &Path, dir: &Path, out: &mut Vec<String>) -> anyhow::Result<()> {
+    for e in std::fs::read_dir(dir).with_context(|| format!("reading {}", dir.display()))? {
+        let p = e?.path();
+        if p.file_name()
+            .is_some_and(|n| n.to_string_lossy().starts_with('.'))
+        {
+            continue;
+        }
+        if p.is_dir() {
+            walk(root, &p, out)?;
+        } else {
+            let rel = p.strip_prefix(root).unwrap_or(&p);
+            out.push(
+                rel.components()
+                    .map(|c| c.as_os_str().to_string_lossy())
+                    .collect::<Vec<_>>()
+                    .join("/"),
+            );
+        }
+    }
+    Ok(())
+}
+
+/// The pack of a folder of runs: `X/` → `X.jsonl.gz`.
+pub fn pack_path(runs: &Path) -> PathBuf {
+    let name = runs
+        .file_name()
+        .map_or_else(|| "runs".to_string(), |n| n.to_string_lossy().into_owned());
+    runs.with_file_name(format!("{name}{PACK_SUFFIX}"))
+}
+
+/// The folder of runs a pack stands for: `X.jsonl.gz` → `X/` (a folder is itself).
+pub fn runs_folder(path: &Path) -> PathBuf {
+    let s = path.to_string_lossy();
+    match s.strip_suffix(PACK_SUFFIX) {
+        Some(folder) => PathBuf::from(folder),
+        None => path.to_path_buf(),
+    }
+}
+
+/// The folder of runs a command names: a sweep folder's `runs/` (the folder has a
+/// `sweep.json`), the folder a pack stands for, or the folder itself.
+pub fn runs_of(dir: &Path) -> PathBuf {
+    if dir.join(super::local::PLAN_FILE).is_file() {
+        dir.join(super::local::RUNS_DIR)
+    } else {
+        runs_folder(dir)
+    }
+}
+
+/// Packed runs, in name order.
+#[derive(Clone, Debug, Default)]
+pub struct Pack {
+    /// The runs.
+    pub runs: Vec<PackedRun>,
+}
+
+impl Pack {
+    /// Reads a pack file.
+    pub fn read(path: &Path) -> anyhow::Result<Pack> {
+        let file =
+            std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?;
+        let mut lines = BufReader::new(flate2::read::GzDecoder::new(file)).lines();
+        let first = lines
+            .next()
+            .with_context(|| format!("{} is empty", path.display()))?
+            .with_context(|| format!("reading {}", path.display()))?;
+        let header: Header = serde_json::from_str(&first)
+            .with_context(|| format!("{} has no pack header", path.display()))?;
+        if header.format != PACK_FORMAT {
+            bail!(
+                "{} is a pack of format `{}`; this ifslab reads `{PACK_FORMAT}`",
+                path.display(),
+                header.format
+            );
+        }
+        let mut runs = Vec::with_capacity(header.runs);
+        for (k, line) in lines.enumerate() {
+            let line = line.with_context(|| format!("reading {}", path.display()))?;
+            runs.push(
+                serde_json::from_str(&line)
+                    .with_context(|| format!("{}: run {} is not valid", path.display(), k + 1))?,
+            );
+        }
+        if runs.len() != header.runs {
+            bail!(
+                "{} holds {} runs where its header says {}: the file is cut short",
+                path.display(),
+                runs.len(),
+                header.runs
+            );
+        }
+        Ok(Pack { runs })
+    }
+
+    /// The pack beside a folder of runs (`X.jsonl.gz` for `X/`), empty when there is none.
+    pub fn beside(runs: &Path) -> anyhow::Result<Pack> {
+        let path = pack_path(runs);
+        if path.is_file() {
+            Pack::read(&path)
+        } else {
+            Ok(Pack::default())
+        }
+    }
+
+    /// Writes the pack (runs in name order; the same runs give the same bytes).
+    pub fn write(&mut self, path: &Path) -> anyhow::Result<()> {
+        self.runs.sort_by(|a, b| a.name.cmp(&b.name));
+        let header = Header {
+            format: PACK_FORMAT.into(),
+            runs: self.runs.len(),
+            log_digits: LOG_DIGITS,
+            note: "one finished run a line: its text files verbatim, log.csv as columns \
+                   (the iteration and a few others, rounded); pictures left out — \
+                   `ifslab unpack --pictures` draws them again"
+                .into(),
+        };
+        let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+        writeln!(gz, "{}", serde_json::to_string(&header)?)?;
+        for r in &self.runs {
+            writeln!(gz, "{}", serde_json::to_string(r)?)?;
+        }
+        ifslab::io::write_atomic(path, &gz.finish()?)?;
+        Ok(())
+    }
+
+    /// A run by its folder name.
+    pub fn get(&self, name: &str) -> Option<&PackedRun> {
+        self.runs
+            .binary_search_by(|r| r.name.as_str().cmp(name))
+            .ok()
+            .map(|k| &self.runs[k])
+    }
+
+    /// The names of the packed runs.
+    pub fn names(&self) -> HashSet<&str> {
+        self.runs.iter().map(|r| r.name.as_str()).collect()
+    }
+}
+
+/// Whether a folder holds a finished run: a `summary.json` (and, in a sweep folder, the
+/// `run.json` the runner writes last).
+fn is_finished_folder(dir: &Path) -> bool {
+    dir.join("summary.json").is_file()
+}
+
+/// What [`pack`] did.
+#[derive(Debug, Default)]
+pub struct Packed {
+    /// The pack written.
+    pub path: PathBuf,
+    /// Runs taken from folders now.
+    pub added: usize,
+    /// Runs in the pack in all.
+    pub runs: usize,
+    /// Folders removed after the pack was read back and found equal.
+    pub removed: usize,
+    /// Folders left alone: not finished runs (partial, failed, other files).
+    pub skipped: Vec<PathBuf>,
+    /// Bytes of the pack.
+    pub bytes: u64,
+}
+
+/// Packs the finished run folders of `runs` (a sweep folder's `runs/`, or any folder of run
+/// folders) into `runs.jsonl.gz` beside it, added to the runs already packed there (a folder
+/// replaces its packed copy). With `remove`, the packed folders are deleted once the pack
+/// has been read back and holds each of them as packed.
+pub fn pack(runs: &Path, keep: &[String], remove: bool) -> anyhow::Result<Packed> {
+    let path = pack_path(runs);
+    let mut pack = Pack::beside(runs)?;
+    let mut dirs: Vec<PathBuf> = std::fs::read_dir(runs)
+        .with_context(|| format!("reading {}", runs.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_dir())
+        .filter(|p| {
+            !p.file_name()
+                .is_some_and(|n| n.to_string_lossy().starts_with('.'))
+        })
+        .collect();
+    dirs.sort();
+    let mut out = Packed {
+        path: path.clone(),
+        ..Packed::default()
+    };
+    let mut fresh = Vec::new();
+    for d in dirs {
+        if !is_finished_folder(&d) {
+            out.skipped.push(d);
+            continue;
+        }
+        let run = PackedRun::from_folder(&d, keep)?;
+        pack.runs.retain(|r| r.name != run.name);
+        pack.runs.push(run.clone());
+        fresh.push((d, run));
+    }
+    out.added = fresh.len();
+    pack.write(&path)?;
+    let back = Pack::read(&path)?;
+    out.runs = back.runs.len();
+    out.bytes = std::fs::metadata(&path)?.len();
+    if remove {
+        for (d, run) in &fresh {
+            if back.get(&run.name) != Some(run) {
+                bail!(
+                    "{} read back differs from the folder {}: nothing removed after it",
+                    path.display(),
+                    d.display()
+                );
+            }
+            std::fs::remove_dir_all(d).with_context(|| format!("removing {}", d.display()))?;
+            out.removed += 1;
+        }
+    }
+    Ok(out)
+}
+
+/// What [`unpack`] did.
+#[derive(Debug, Default)]
+pub struct Unpacked {
+    /// The folders of the runs asked for, written now or there already.
+    pub folders: Vec<PathBuf>,
+    /// How many were written now.
+    pub written: usize,
+}
+
+/// Writes the folders of packed runs back into `runs/` (those named in `only`, else all),
+/// leaving folders that exist alone.
+pub fn unpack(runs: &Path, only: &[String]) -> anyhow::Result<Unpacked> {
+    let path = pack_path(runs);
+    if !path.is_file() {
+        bail!(
+            "{} has no pack beside it ({})",
+            runs.display(),
+            path.display()
+        );
+    }
+    let pack = Pack::read(&path)?;
+    for name in only {
+        if pack.get(name).is_none() {
+            bail!("{} has no run `{name}`", path.display());
+        }
+    }
+    let mut out = Unpacked::default();
+    for r in &pack.runs {
+        if !only.is_empty() && !only.contains(&r.name) {
+            continue;
+        }
+        let dir = runs.join(&r.name);
+        out.folders.push(dir.clone());
+        if dir.exists() {
+            continue;
+        }
+        // Written aside and renamed, so a folder that exists is a whole run.
+        let tmp = runs.join(format!(".{}.unpacking", r.name));
+        if tmp.exists() {
+            std::fs::remove_dir_all(&tmp).with_context(|| format!("clearing {}", tmp.display()))?;
+        }
+        r.write_folder(&tmp)?;
+        std::fs::rename(&tmp, &dir)
+            .with_context(|| format!("moving {} into place", tmp.display()))?;
+        out.written += 1;
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_packed_folder_unpacks_to_its_text_files_and_a_compacted_log() {
+        let tmp = tempfile::tempdir().unwrap();
+        let runs = tmp.path().join("runs");
+        let a = runs.join("abc");
+        std::fs::create_dir_all(a.join("sub")).unwrap();
+        std::fs::write(a.join("summary.json"), "{\n  \"iou\": 0.123456789\n}").unwrap();
+        std::fs::write(a.join("config.toml"), "seed = 1\n").unwrap();
+        std::fs::write(a.join("sub/notes.txt"), "kept").unwrap();
+        std::fs::write(a.join("render.png"), [0u8, 159, 146, 150]).unwrap();
+        std::fs::write(
+            a.join("log.csv"),
+            "iter,loss,msmse,seconds\n0,1.234567891,0.5,0.1\n1,NaN,0.4,0.2\n123456,0.000123456789,0.3,0.3\n",
+        )
+        .unwrap();
+        // Not finished: left alone.
+        std::fs::create_dir_all(runs.join("partial")).unwrap();
+        std::fs::create_dir_all(runs.join(".locks")).unwrap();
+        let keep: Vec<String> = DEFAULT_LOG_COLUMNS.iter().map(|s| s.to_string()).collect();
+        let p = pack(&runs, &keep, true).unwrap();
+        assert_eq!((p.added, p.runs, p.removed), (1, 1, 1));
+        assert_eq!(p.skipped, vec![runs.join("partial")]);
+        assert!(!a.exists() && p.path == tmp.path().join("runs.jsonl.gz"));
+        let back = Pack::read(&p.path).unwrap();
+        let r = back.get("abc").unwrap();
+        assert_eq!(r.left_out, ["render.png"]);
+        assert_eq!(r.file("sub/notes.txt"), Some("kept"));
+        assert_eq!(
+            r.loss_curve().unwrap(),
+            [(0.0, 1.2346), (123456.0, 0.00012346)],
+            "the iteration exact, the loss to 5 digits, NaN left out"
+        );
+        // Packing again changes nothing, byte for byte.
+        let bytes = std::fs::read(&p.path).unwrap();
+        pack(&runs, &keep, false).unwrap();
+        assert_eq!(std::fs::read(&p.path).unwrap(), bytes);
+        let u = unpack(&runs, &[]).unwrap();
+        assert_eq!((u.folders, u.written), (vec![a.clone()], 1));
+        assert_eq!(
+            unpack(&runs, &[]).unwrap().written,
+            0,
+            "a folder there is left alone"
+        );
+        assert_eq!(
+            std::fs::read_to_string(a.join("summary.json")).unwrap(),
+            "{\n  \"iou\": 0.123456789\n}"
+        );
+        assert_eq!(
+            std::fs::read_to_string(a.join("log.csv")).unwrap(),
+            "iter,loss\n0,1.2346\n1,NaN\n123456,0.00012346\n"
+        );
+        assert!(!a.join("render.png").exists());
+        assert!(unpack(&runs, &["nope".into()]).is_err());
+    }
+
+    #[test]
+    fn a_cut_pack_is_refused() {
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("runs.jsonl.gz");
+        let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+        writeln!(
+            gz,
+            "{{\"format\":\"{PACK_FORMAT}\",\"runs\":2,\"log_digits\":5,\"note\":\"\"}}"
+        )
+        .unwrap();
+        writeln!(gz, "{{\"name\":\"a\",\"files\":{{}}}}").unwrap();
+        std::fs::write(&path, gz.finish().unwrap()).unwrap();
+        let e = Pack::read(&path).unwrap_err().to_string();
+        assert!(e.contains("cut short"), "{e}");
+    }
+}
