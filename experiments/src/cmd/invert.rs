@@ -97,6 +97,11 @@ pub struct Args {
     /// fractal). [default: collage; --paper: random]
     #[arg(long)]
     pub init: Option<String>,
+    /// Side in pixels at which the collage start reads the picture (the fit runs at
+    /// --size), e.g. 256: thin detail that --size blurs away still shapes the start
+    /// (measured in robustness/README.md; not the default). [default: --size]
+    #[arg(long)]
+    pub start_size: Option<usize>,
     /// Which way round the target's shape is drawn: auto (decide from the border),
     /// bright-on-dark or dark-on-light.
     #[arg(long, default_value = "auto", conflicts_with = "dark_on_light")]
@@ -185,6 +190,9 @@ fn config_from_flags(a: &Args) -> anyhow::Result<InversionConfig> {
             other => anyhow::bail!("unknown --init `{other}`: use collage, em or random"),
         };
         set("model.init", value(&kind)?);
+    }
+    if let Some(side) = a.start_size {
+        set("model.start_size", (side as i64).into());
     }
     if let Some(n) = a.trajectories {
         set("generator.trajectories", (n as i64).into());

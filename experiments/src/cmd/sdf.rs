@@ -94,8 +94,8 @@ pub struct FitArgs {
     #[arg(long)]
     pub max_scale: Option<f64>,
     /// Where the points start: line (the paper's best-fit line), pattern (its shape on that
-    /// line), given (the pattern file's points), best (the best of several starts after a
-    /// few coarse steps each). [default: best; --paper: line]
+    /// line), given (the pattern file's points), best (the best of five starts, each followed for
+    /// `init.probe_steps` Adam steps, 80 by default). [default: best; --paper: line]
     #[arg(long)]
     pub init: Option<String>,
     /// Gaussian noise added to the start (units of the target's side). [default: 0]

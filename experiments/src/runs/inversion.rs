@@ -262,14 +262,7 @@ pub fn run_and_report(
         save_framed_target(&dir.join(FRAMED_TARGET_FILE), &target, size)?;
         target
     };
-    save_grey_png(
-        &dir.join("target.png"),
-        &target,
-        size as u32,
-        size as u32,
-        BitDepth::Eight,
-        false,
-    )?;
+    save_square_grey(&dir.join("target.png"), &target, size)?;
     progress.start(cfg.strategy.name(), cfg.iterations);
     let started = Instant::now();
     let outcome = run_inversion(
@@ -347,14 +340,7 @@ fn write_outputs(
     final_render.save_png(&dir.join("render.png"), BitDepth::Eight, false)?;
     let truth = ground_truth(cfg, target)?;
     if cfg.target.code.is_some() || cfg.target.suite.is_some() {
-        save_grey_png(
-            &dir.join("truth.png"),
-            &truth,
-            size as u32,
-            size as u32,
-            BitDepth::Eight,
-            false,
-        )?;
+        save_square_grey(&dir.join("truth.png"), &truth, size)?;
     }
     let (net, lpips_metric_note) = lpips_for_metrics(size)?;
     let metrics = paper_metrics::<f32>(&final_render.values, &truth, size, size, net.as_ref())?;
@@ -367,6 +353,19 @@ fn write_outputs(
     )?;
     loss_plot(&out.log, &dir.join("loss.png"))?;
     Ok((metrics, lpips_metric_note))
+}
+
+/// Writes a `size × size` grey picture (values in [0, 1]) as an 8-bit PNG.
+fn save_square_grey(path: &Path, values: &[f32], size: usize) -> anyhow::Result<()> {
+    save_grey_png(
+        path,
+        values,
+        size as u32,
+        size as u32,
+        BitDepth::Eight,
+        false,
+    )?;
+    Ok(())
 }
 
 /// Draws a finished run's pictures again from its config and `code.json` — a folder
@@ -388,25 +387,11 @@ pub fn redraw_pictures(cfg: &InversionConfig, dir: &Path) -> anyhow::Result<Vec<
     final_render.save_png(&dir.join("render.png"), BitDepth::Eight, false)?;
     written.push(dir.join("render.png"));
     let target = run_target(cfg, dir)?;
-    save_grey_png(
-        &dir.join("target.png"),
-        &target,
-        size as u32,
-        size as u32,
-        BitDepth::Eight,
-        false,
-    )?;
+    save_square_grey(&dir.join("target.png"), &target, size)?;
     written.push(dir.join("target.png"));
     if cfg.target.code.is_some() || cfg.target.suite.is_some() {
         let truth = ground_truth(cfg, &target)?;
-        save_grey_png(
-            &dir.join("truth.png"),
-            &truth,
-            size as u32,
-            size as u32,
-            BitDepth::Eight,
-            false,
-        )?;
+        save_square_grey(&dir.join("truth.png"), &truth, size)?;
         written.push(dir.join("truth.png"));
     }
     if let Some(spec) = &cfg.target.truth {

@@ -109,7 +109,7 @@ struct Field {
 impl Field {
     fn new(target: &[f32], size: usize, ink_level: f64) -> Result<Field> {
         let max = target.iter().copied().fold(0.0f32, f32::max);
-        if !(max > 0.0) {
+        if max.is_nan() || max <= 0.0 {
             return Err(Error::InvalidInput(
                 "the target has no bright pixels for the collage start".into(),
             ));

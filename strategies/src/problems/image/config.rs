@@ -400,7 +400,7 @@ impl InversionConfig {
         let init = get_dotted(table, "model.init")
             .and_then(|v| v.as_str())
             .unwrap_or("collage");
-        let mut preset = table_of([
+        let keys = [
             ("iterations", (DEFAULT_ITERATIONS as i64).into()),
             (
                 "generator.trajectories",
@@ -410,7 +410,8 @@ impl InversionConfig {
             ("model.init", "collage".into()),
             ("model.em_reflections", true.into()),
             ("renderer.sigma_final", DEFAULT_SIGMA_FINAL.into()),
-        ]);
+        ];
+        let mut preset = table_of(keys);
         if !named {
             let kind = if init != "random" {
                 ColdHybridConfig::KIND
@@ -568,6 +569,13 @@ impl InversionConfig {
                 self.model.init_noise
             )));
         }
+        if let Some(side) = self.model.start_size
+            && !(16..=2048).contains(&side)
+        {
+            return Err(Error::InvalidInput(format!(
+                "config field `model.start_size`: must lie in 16..=2048 pixels, got {side}"
+            )));
+        }
         in_section("generator", self.game().validate().map_err(Error::from))?;
         in_section(
             "renderer",
@@ -660,10 +668,30 @@ mod tests {
     }
 
     #[test]
+    fn the_start_size_is_checked_and_written_only_when_set() {
+        let small = InversionConfig::from_toml(
+            &format!("{MINIMAL}[model]\nstart_size = 8\n"),
+            Path::new("c.toml"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(small.contains("model.start_size"), "{small}");
+        // Unset, it is not written, so the runs of recipes that do not use it keep their ids.
+        let em = InversionConfig::from_toml(
+            &format!("{MINIMAL}[model]\ninit = \"em\"\n"),
+            Path::new("c.toml"),
+        )
+        .unwrap();
+        assert_eq!(em.model.start_size, None);
+        assert!(!em.to_toml().contains("start_size"));
+    }
+
+    #[test]
     fn minimal_config_gets_ifslabs_recipe_and_round_trips() {
         let cfg = InversionConfig::from_toml(MINIMAL, Path::new("c.toml")).unwrap();
         assert!(!cfg.paper);
         assert_eq!(cfg.model.init, InitKind::Collage);
+        assert_eq!(cfg.model.start_size, None);
         assert_eq!(cfg.strategy.name(), "cold_hybrid");
         assert_eq!(cfg.renderer.sigma_final, Some(DEFAULT_SIGMA_FINAL));
         assert_eq!(cfg.loss, LossConfig::default());

@@ -22,6 +22,7 @@ use crate::problems::image::collage::{
 };
 use crate::problems::image::config::{InitKind, InversionConfig};
 use crate::problems::image::model::AnyModel;
+use crate::problems::image::target::load_framed_picture;
 
 /// Points drawn from a `size × size` image with probability ∝ intensity, jittered inside
 /// their pixel, in coordinates `[−1, 1]²` (y up).
@@ -219,7 +220,7 @@ fn moments<'a>(points: impl Iterator<Item = &'a Vector2<f64>>) -> (Vector2<f64>,
 fn sqrt_and_inverse(c: &Matrix2<f64>) -> Option<(Matrix2<f64>, Matrix2<f64>)> {
     let e = nalgebra::SymmetricEigen::new(*c);
     let floor = 1e-9 * e.eigenvalues.amax().max(1e-300);
-    if e.eigenvalues.iter().any(|&l| !(l > floor)) {
+    if e.eigenvalues.iter().any(|&l| l.is_nan() || l <= floor) {
         return None;
     }
     let v = e.eigenvectors;
@@ -288,9 +289,13 @@ pub fn initial_theta(
                 }
                 maps
             }
-            InitKind::Collage => {
-                collage_or_em(target, cfg.target.size, n, seed, cfg.model.em_reflections)?
-            }
+            InitKind::Collage => match (&cfg.model.start_size, &cfg.target.image) {
+                (Some(side), Some(path)) if *side != cfg.target.size => {
+                    let picture = load_framed_picture(path, *side, cfg.target.polarity)?;
+                    collage_or_em(&picture.values, *side, n, seed, cfg.model.em_reflections)?
+                }
+                _ => collage_or_em(target, cfg.target.size, n, seed, cfg.model.em_reflections)?,
+            },
             InitKind::Random if n >= 2 => sample_code(n, seed)?.maps,
             InitKind::Random => vec![Affine2::new(0.5, 0.0, 0.0, 0.5, 0.1, 0.1)],
         },
@@ -460,6 +465,55 @@ mod tests {
             .filter(|(a, b)| **a || **b > 0.5)
             .count();
         both as f64 / either as f64
+    }
+
+    /// `model.start_size` makes the collage start read the picture file again at that side
+    /// (the fit's target stays at `target.size`): at the target's own side it is the same
+    /// start as without it; at a larger one a different start, drawn from finer ink.
+    #[test]
+    fn a_collage_start_reads_the_picture_at_its_start_size() {
+        let truth = [
+            Affine2::new(0.45, -0.1, 0.12, 0.3, -0.4, 0.3),
+            Affine2::new(0.3, 0.2, -0.25, 0.35, 0.45, 0.25),
+            Affine2::new(0.35, 0.0, 0.1, -0.4, 0.0, -0.45),
+        ];
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("picture.png");
+        let image = picture(&truth, 256);
+        ifslab::render::image_io::save_grey_png(
+            &path,
+            &image,
+            256,
+            256,
+            ifslab::render::image_io::BitDepth::Eight,
+            false,
+        )
+        .unwrap();
+        let config = |start: &str| {
+            let text = format!(
+                "iterations = 1\n[target]\nimage = {path:?}\nsize = 48\n[model]\nmaps = 3\n{start}"
+            );
+            InversionConfig::from_toml(&text, &path).unwrap()
+        };
+        let plain = config("init = \"collage\"\n");
+        plain.validate().unwrap();
+        let target =
+            crate::problems::image::target::load_target(&path, 48, plain.target.polarity).unwrap();
+        let model = plain.model.build().unwrap();
+        let theta = |cfg: &InversionConfig| initial_theta(cfg, model.as_ref(), &target).unwrap();
+        let mut unset = plain.clone();
+        unset.model.start_size = None;
+        let own = config("init = \"collage\"\nstart_size = 48\n");
+        assert_eq!(theta(&unset), theta(&own));
+        let finer = config("init = \"collage\"\nstart_size = 256\n");
+        assert_ne!(theta(&unset), theta(&finer));
+        // A missing picture is an error that names it, not a silent fall-back.
+        let mut gone = finer.clone();
+        gone.target.image = Some(dir.path().join("gone.png"));
+        let err = initial_theta(&gone, model.as_ref(), &target)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("gone.png"), "{err}");
     }
 
     /// The arrangement of a random affine code with stretched and sheared maps (a code of

@@ -317,6 +317,12 @@ pub struct ModelConfig {
     /// (0: off). Written only when on.
     #[serde(skip_serializing_if = "is_zero")]
     pub em_affine: usize,
+    /// The side (pixels) at which the collage start reads a picture target: the picture is
+    /// framed again at this size for the start alone, so that thin detail the fit's
+    /// `target.size` blurs away still shapes the maps (the fit runs at `target.size`).
+    /// None: `target.size`. Code targets start from the fit's target. Written only when set.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub start_size: Option<usize>,
     /// How the chaos game of the differentiable renderer picks maps: `uniform` (the
     /// chaotic-splatting paper's generator) or `determinant` (∝ |det M|, no floor: Learning
     /// Fractals). Evaluation renders always use |det| with a 1% floor.
@@ -377,6 +383,7 @@ impl Default for ModelConfig {
             init_noise: 0.0,
             em_reflections: false,
             em_affine: 0,
+            start_size: None,
             probabilities: MapProbabilities::Uniform,
         }
     }

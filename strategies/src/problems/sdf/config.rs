@@ -10,7 +10,7 @@ use crate::error::{Error, Result};
 use crate::optim::adam::AdamConfig;
 use crate::problems::image::config::StrategyConfig;
 use crate::problems::image::target::Polarity;
-use crate::problems::sdf::init::SdfInit;
+use crate::problems::sdf::init::{PROBE_STEPS, SdfInit};
 use crate::problems::sdf::learned::LearnedConfig;
 use crate::problems::sdf::problem::SdfLossConfig;
 
@@ -23,6 +23,8 @@ pub struct SdfInitConfig {
     /// Standard deviation of Gaussian noise added to the start (units of the target's side),
     /// drawn from the run's seed.
     pub jitter: f64,
+    /// Adam steps each candidate of `best` is followed for before they are compared.
+    pub probe_steps: u64,
 }
 
 impl Default for SdfInitConfig {
@@ -30,6 +32,7 @@ impl Default for SdfInitConfig {
         SdfInitConfig {
             kind: SdfInit::Line,
             jitter: 0.0,
+            probe_steps: PROBE_STEPS,
         }
     }
 }
@@ -316,7 +319,7 @@ impl SdfConfig {
         // The fit's work: every step draws (and differentiates) every pixel, and every
         // primitive moves; the best-of-starts probes come first.
         let probes = if self.init.kind == SdfInit::Best {
-            5 * crate::problems::sdf::init::PROBE_STEPS
+            5 * self.init.probe_steps
         } else {
             0
         };

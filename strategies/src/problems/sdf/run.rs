@@ -12,7 +12,7 @@ use crate::driver::GradState;
 use crate::driver::plan::{RunPlan, START_FILE};
 use crate::error::{Error, Result};
 use crate::problems::sdf::config::SdfConfig;
-use crate::problems::sdf::init::{PROBE_STEPS, SdfInit, candidate_starts, initial_points};
+use crate::problems::sdf::init::{SdfInit, candidate_starts, initial_points};
 use crate::problems::sdf::problem::{SDF_TERMS, SdfProblem};
 use crate::problems::sdf::target::sigma_for_stroke;
 use ifslab::model::segment::PrimitiveKind;
@@ -65,7 +65,7 @@ pub fn sdf_problem(cfg: &SdfConfig, target: Vec<f64>, stroke: Option<f64>) -> Re
 }
 
 /// The start [`SdfInit::Best`] picks for `problem`: every [`candidate_starts`] entry followed
-/// for [`PROBE_STEPS`] Adam steps at the first σ of the run (the strategy's learning rate
+/// for `init.probe_steps` Adam steps at the first σ of the run (the strategy's learning rate
 /// when it is Adam, else 2e-3); the candidate whose loss is lowest after them, by name, with
 /// its *starting* points (the fit then runs its whole schedule from there). Deterministic.
 pub fn best_start(problem: &SdfProblem, cfg: &SdfConfig) -> Result<(&'static str, Vec<f64>)> {
@@ -77,7 +77,7 @@ pub fn best_start(problem: &SdfProblem, cfg: &SdfConfig) -> Result<(&'static str
     let candidates = candidate_starts(problem.pattern(), problem.target(), problem.view())?;
     let mut best: Option<(f64, &'static str, Vec<f64>)> = None;
     for (name, start) in candidates {
-        let Ok(loss) = probe(problem, &start, lr, sigma) else {
+        let Ok(loss) = probe(problem, &start, lr, sigma, cfg.init.probe_steps) else {
             continue;
         };
         if best.as_ref().is_none_or(|b| loss < b.0) {
@@ -93,12 +93,12 @@ pub fn best_start(problem: &SdfProblem, cfg: &SdfConfig) -> Result<(&'static str
     Ok((name, theta))
 }
 
-/// The loss at width `sigma` after [`PROBE_STEPS`] Adam steps from `start`.
-fn probe(problem: &SdfProblem, start: &[f64], lr: f64, sigma: f64) -> Result<f64> {
+/// The loss at width `sigma` after `steps` Adam steps from `start`.
+fn probe(problem: &SdfProblem, start: &[f64], lr: f64, sigma: f64, steps: u64) -> Result<f64> {
     let (b1, b2, eps) = (0.9f64, 0.999f64, 1e-8);
     let mut theta = start.to_vec();
     let (mut m, mut v) = (vec![0.0; theta.len()], vec![0.0; theta.len()]);
-    for t in 1..=PROBE_STEPS as i32 {
+    for t in 1..=steps as i32 {
         let g = problem
             .eval_with(&theta, true, sigma)?
             .grad
