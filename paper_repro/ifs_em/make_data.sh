@@ -22,4 +22,6 @@ sample pinwheel4 pinwheel4 -n 10000 --seed 7
 sample spiral5 spiral5 -n 10000 --seed 8
 sample random3 random --maps 3 --code-seed 1 -n 10000 --seed 9
 sample random4 random --maps 4 --code-seed 2 -n 10000 --seed 10
+sample square4 square4 -n 10000 --seed 11
+sample carpet8 carpet8 -n 10000 --seed 12
 echo "data in $(pwd)/$out"

@@ -17,6 +17,8 @@ Shapes (all similitudes with proper rotations, so inside EM's model class):
   pinwheel4    four maps of ratio 0.45 rotated by 20 degrees towards a square's corners
   spiral5      five maps: a ratio-0.4 pentagon of maps, each rotated by 36 degrees
   carpet8      Sierpinski carpet: eight maps of ratio 1/3 (a solid-looking K = 8 code)
+  square4      a filled square: four maps x -> (x + v)/2 towards its corners (a solid
+               attractor: every point of the square, the pieces only touching)
   random       --maps similitudes with random ratios in [0.3, 0.5], rotations and fixed
                points (--code-seed), redrawn until the pieces' fixed-point spread is usable
 
@@ -56,6 +58,8 @@ def shape_maps(name, k, code_seed):
     if name == "spiral5":
         pts = [(math.cos(2 * math.pi * i / 5), math.sin(2 * math.pi * i / 5)) for i in range(5)]
         return [similitude(0.4, 36.0, p) for p in pts]
+    if name == "square4":
+        return [similitude(0.5, 0.0, v) for v in [(0, 0), (1, 0), (1, 1), (0, 1)]]
     if name == "carpet8":
         pts = [(i, j) for i in range(3) for j in range(3) if (i, j) != (1, 1)]
         return [similitude(1.0 / 3.0, 0.0, (i / 2.0, j / 2.0)) for i, j in pts]
