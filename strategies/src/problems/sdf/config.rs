@@ -14,6 +14,10 @@ use crate::problems::sdf::init::{PROBE_STEPS, SdfInit};
 use crate::problems::sdf::learned::LearnedConfig;
 use crate::problems::sdf::problem::SdfLossConfig;
 
+/// The most Adam steps `init.probe_steps` may ask for per start (a whole fit's worth of
+/// probing many times over; the run's work budget refuses long ones before this does).
+pub const MAX_PROBE_STEPS: u64 = 1_000_000;
+
 /// How the control points start.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -298,6 +302,15 @@ impl SdfConfig {
                 format!("must be ≥ 0, got {}", self.init.jitter),
             ));
         }
+        if self.init.probe_steps > MAX_PROBE_STEPS {
+            return Err(Error::param(
+                "init.probe_steps",
+                format!(
+                    "must be at most {MAX_PROBE_STEPS} Adam steps per start, got {}",
+                    self.init.probe_steps
+                ),
+            ));
+        }
         self.loss.validate()?;
         if let Some(l) = &self.learned {
             l.validate()?;
@@ -319,12 +332,13 @@ impl SdfConfig {
         // The fit's work: every step draws (and differentiates) every pixel, and every
         // primitive moves; the best-of-starts probes come first.
         let probes = if self.init.kind == SdfInit::Best {
-            5 * self.init.probe_steps
+            self.init.probe_steps.saturating_mul(5)
         } else {
             0
         };
         let steps = self.iterations.saturating_add(probes) as f64;
-        let per_step = (self.size * self.size) as f64 + leaves.unwrap_or(usize::MAX) as f64;
+        let per_step =
+            (self.size as f64) * (self.size as f64) + leaves.unwrap_or(usize::MAX) as f64;
         ifslab::budget::check_rate(
             steps * per_step,
             PIXELS_PER_SECOND_PER_THREAD,
@@ -378,5 +392,18 @@ mod tests {
         .unwrap();
         assert_eq!((given.sigma_start, given.size), (Some(3.0), 96));
         assert_eq!(given.init.kind, SdfInit::Best);
+    }
+
+    #[test]
+    fn the_starts_are_probed_80_steps_and_an_absurd_count_is_refused() {
+        let ours = SdfConfig::from_toml(MINIMAL, Path::new("c.toml")).unwrap();
+        assert_eq!(ours.init.probe_steps, 80);
+        let huge = SdfConfig::from_toml(
+            &format!("{MINIMAL}[init]\nprobe_steps = 9223372036854775807\n"),
+            Path::new("c.toml"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(huge.contains("init.probe_steps"), "{huge}");
     }
 }
