@@ -1023,6 +1023,7 @@ fn the_ifs_em_sweeps_are_its_committed_results_and_a_rerun_reproduces_one() {
         ("convergence", 14),
         ("ablation", 11),
         ("solid", 2),
+        ("fig5b_128", 1),
     ] {
         let p = Plan::load(&repro.join(format!("sweeps/{name}.toml"))).unwrap();
         assert_eq!(p.runs.len(), n, "{name}");
