@@ -370,8 +370,9 @@ impl Pack {
     }
 }
 
-/// Whether a folder holds a finished run: a `summary.json` (and, in a sweep folder, the
-/// `run.json` the runner writes last).
+/// Whether a folder holds a finished run: its `summary.json`, which every problem writes
+/// last of its own files (a sweep's `run.json` comes after it, but `ifslab run` folders
+/// have none).
 fn is_finished_folder(dir: &Path) -> bool {
     dir.join("summary.json").is_file()
 }

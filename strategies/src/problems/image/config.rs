@@ -569,12 +569,20 @@ impl InversionConfig {
                 self.model.init_noise
             )));
         }
-        if let Some(side) = self.model.start_size
-            && !(16..=2048).contains(&side)
-        {
-            return Err(Error::InvalidInput(format!(
-                "config field `model.start_size`: must lie in 16..=2048 pixels, got {side}"
-            )));
+        if let Some(side) = self.model.start_size {
+            if !(16..=2048).contains(&side) {
+                return Err(Error::InvalidInput(format!(
+                    "config field `model.start_size`: must lie in 16..=2048 pixels, got {side}"
+                )));
+            }
+            if self.target.image.is_none() {
+                return Err(Error::InvalidInput(
+                    "config field `model.start_size`: the start reads a picture again at that \
+                     side, so it needs a picture target (`target.image`); a code or suite \
+                     target starts from the fit's own target"
+                        .into(),
+                ));
+            }
         }
         in_section("generator", self.game().validate().map_err(Error::from))?;
         in_section(
@@ -676,6 +684,14 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(small.contains("model.start_size"), "{small}");
+        // A code target has no picture to read again: refused, not ignored.
+        let code = InversionConfig::from_toml(
+            &format!("{MINIMAL}[model]\nstart_size = 256\n"),
+            Path::new("c.toml"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(code.contains("target.image"), "{code}");
         // Unset, it is not written, so the runs of recipes that do not use it keep their ids.
         let em = InversionConfig::from_toml(
             &format!("{MINIMAL}[model]\ninit = \"em\"\n"),

@@ -320,7 +320,8 @@ pub struct ModelConfig {
     /// The side (pixels) at which the collage start reads a picture target: the picture is
     /// framed again at this size for the start alone, so that thin detail the fit's
     /// `target.size` blurs away still shapes the maps (the fit runs at `target.size`).
-    /// None: `target.size`. Code targets start from the fit's target. Written only when set.
+    /// None: `target.size`. Picture targets only (a config that sets it for a code target is
+    /// refused). Written only when set.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub start_size: Option<usize>,
     /// How the chaos game of the differentiable renderer picks maps: `uniform` (the
