@@ -25,6 +25,9 @@ use crate::progress::{Progress, ProgressObserver};
 /// The resolved config inside a run folder.
 pub const CONFIG_FILE: &str = "config.toml";
 
+/// The per-iteration log inside a run folder (what a sweep's pack keeps as columns).
+pub const LOG_FILE: &str = "log.csv";
+
 /// Points per evaluation render (the chaotic-splatting paper's 50 M per view).
 pub const EVAL_POINTS: u64 = 50_000_000;
 /// Binary supersampling per side of evaluation renders (the paper's 8×8).
@@ -406,7 +409,7 @@ pub fn redraw_pictures(cfg: &InversionConfig, dir: &Path) -> anyhow::Result<Vec<
         cfg.seed,
     )?;
     written.push(dir.join("zoom_strip.png"));
-    let log = dir.join(crate::sweep::pack::LOG_FILE);
+    let log = dir.join(LOG_FILE);
     if log.is_file() {
         loss_plot(&log, &dir.join("loss.png"))?;
         written.push(dir.join("loss.png"));

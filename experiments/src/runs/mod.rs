@@ -40,7 +40,7 @@ pub fn redraw_pictures(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
     match RunConfig::load_resolved(&dir.join(inversion::CONFIG_FILE))? {
         RunConfig::Image(cfg) => inversion::redraw_pictures(&cfg, dir),
         RunConfig::Flame(_) => {
-            let log = dir.join(crate::sweep::pack::LOG_FILE);
+            let log = dir.join(inversion::LOG_FILE);
             if !log.is_file() {
                 bail!("{}: no log.csv to draw loss.png from", dir.display());
             }

@@ -22,24 +22,7 @@ use super::pack::{self, Pack, PackedRun};
 use super::shard::Shard;
 use crate::progress::Progress;
 
-/// The sweep's index in its output folder.
-pub const PLAN_FILE: &str = "sweep.json";
-/// The run folders' parent.
-pub const RUNS_DIR: &str = "runs";
-/// What a finished run folder holds besides the run's own outputs.
-pub const RECORD_FILE: &str = "run.json";
-/// What a failed attempt leaves in its partial folder.
-pub const ERROR_FILE: &str = "error.txt";
-
-/// The folder of a finished run.
-pub fn run_dir(out: &Path, id: &str) -> PathBuf {
-    out.join(RUNS_DIR).join(id)
-}
-
-/// The folder a run works in until it is finished.
-pub fn partial_dir(out: &Path, id: &str) -> PathBuf {
-    out.join(RUNS_DIR).join(format!(".{id}.partial"))
-}
+pub use super::layout::{ERROR_FILE, PLAN_FILE, RECORD_FILE, RUNS_DIR, partial_dir, run_dir};
 
 /// Whether the run with this id is finished in a folder of its own in `out`.
 pub fn is_finished(out: &Path, id: &str) -> bool {

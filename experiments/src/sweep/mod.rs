@@ -6,6 +6,7 @@
 //! - [`expand`]: the sweep as a [`Plan`] of validated runs with stable ids (a hash of the
 //!   resolved config);
 //! - [`shard`]: `--shard i/n`, a deterministic subset;
+//! - [`layout`]: the names in a sweep's output folder (`sweep.json`, `runs/`, …);
 //! - [`local`]: the runner (skip finished, resume interrupted, re-do failed; atomic run
 //!   folders);
 //! - [`slurm`]: the job-array script and its submission;
@@ -20,6 +21,7 @@
 pub mod collect;
 pub mod config;
 pub mod expand;
+pub mod layout;
 pub mod local;
 pub mod pack;
 pub mod paired;

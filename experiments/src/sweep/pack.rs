@@ -24,7 +24,7 @@ pub const PACK_FORMAT: &str = "ifslab-runs/1";
 /// The suffix of a pack: `X/` packs into `X.jsonl.gz`.
 pub const PACK_SUFFIX: &str = ".jsonl.gz";
 /// The log a run writes, kept as columns.
-pub const LOG_FILE: &str = "log.csv";
+pub use crate::runs::inversion::LOG_FILE;
 /// Significant digits the packed log columns keep (the first column, the iteration, is exact).
 pub const LOG_DIGITS: usize = 5;
 /// The log columns kept besides the first (the iteration): what the report plots and what
@@ -273,8 +273,8 @@ pub fn runs_folder(path: &Path) -> PathBuf {
 /// The folder of runs a command names: a sweep folder's `runs/` (the folder has a
 /// `sweep.json`), the folder a pack stands for, or the folder itself.
 pub fn runs_of(dir: &Path) -> PathBuf {
-    if dir.join(super::local::PLAN_FILE).is_file() {
-        dir.join(super::local::RUNS_DIR)
+    if dir.join(super::layout::PLAN_FILE).is_file() {
+        dir.join(super::layout::RUNS_DIR)
     } else {
         runs_folder(dir)
     }
