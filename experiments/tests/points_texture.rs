@@ -296,6 +296,10 @@ fn bad_points_and_texture_configs_name_the_field() {
             "`update` conflicts with `paper = true`",
         ),
         (
+            "problem = \"points\"\ndata = \"ifs:sierpinski\"\npaper = true\nwords = true\n",
+            "`words` conflicts with `paper = true`",
+        ),
+        (
             "problem = \"points\"\ndata = \"missing.csv\"\n",
             "missing.csv",
         ),

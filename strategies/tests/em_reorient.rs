@@ -102,6 +102,29 @@ fn search_turns_a_misoriented_piece_back_and_leaves_the_truth_alone() {
 }
 
 #[test]
+fn a_large_set_is_screened_and_still_turns_the_piece_back() {
+    // 299 turns by 1.2°: over SCREEN_ABOVE, so each is scored on an eighth of the points
+    // first and only the best SCREEN_KEEP on all; the 120° turn (j = 100) must survive it.
+    use ifslab_strategies::problems::em::reorient::{SCREEN_ABOVE, SCREEN_KEEP};
+    let data = triangle_points();
+    let rotations = rotation_set(2, 300, 0);
+    assert!(rotations.len() > SCREEN_ABOVE && SCREEN_KEEP < rotations.len());
+    let truth = triangle_model(None);
+    let mut model = triangle_model(Some((2, 120.0)));
+    for _ in 0..4 {
+        let (next, turned) = reorient(&model, &data, &rotations).unwrap();
+        model = next;
+        if turned.is_empty() {
+            break;
+        }
+    }
+    for (k, (got, want)) in model.components.iter().zip(&truth.components).enumerate() {
+        assert!((&got.r - &want.r).norm() < 1e-9, "map {k}: {}", got.r);
+        assert!((&got.t - &want.t).norm() < 1e-9, "map {k}: {}", got.t);
+    }
+}
+
+#[test]
 fn search_refuses_mismatched_inputs() {
     let model = triangle_model(None);
     let empty = PointSet::new(2, vec![]).unwrap();

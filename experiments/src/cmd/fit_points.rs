@@ -90,9 +90,10 @@ pub struct Args {
     /// How the pre-selection winner is chosen.
     #[arg(long, value_enum, default_value = "log-likelihood")]
     pub preselect_by: SelectBy,
-    /// Orientations tried per component by the re-orientation search (0 = off).
-    #[arg(long, default_value_t = 36)]
-    pub reorient: usize,
+    /// Orientations tried per component by the re-orientation search (0 = off) [default:
+    /// 36; for one or two maps as many as cost what 36 cost four: 3,096 at depth 6].
+    #[arg(long)]
+    pub reorient: Option<usize>,
     /// Re-orientation search every this many main iterations (0 = only in pre-selection).
     #[arg(long, default_value_t = 100)]
     pub reorient_every: usize,
@@ -108,12 +109,16 @@ pub struct Args {
     /// Maps rotate only (the paper's similitudes); by default they may also reflect.
     #[arg(long)]
     pub no_reflections: bool,
+    /// No word search: a component that settled on a two-map word of the code (`S_a∘S_b`)
+    /// is left there; by default it is replaced by the map it is made of.
+    #[arg(long)]
+    pub no_words: bool,
     /// Leave isolated points (stray outliers) out before fitting.
     #[arg(long)]
     pub trim_outliers: bool,
     /// The paper's algorithm: outermost update, fixed-depth pre-selection by mean depth,
-    /// no re-orientation, no recentring.
-    #[arg(long, conflicts_with_all = ["preselect_schedule", "preselect_by", "reorient", "reorient_every", "no_recentre", "update", "no_reflections", "trim_outliers"])]
+    /// no re-orientation or word search, no recentring.
+    #[arg(long, conflicts_with_all = ["preselect_schedule", "preselect_by", "reorient", "reorient_every", "no_recentre", "update", "no_reflections", "no_words", "trim_outliers"])]
     pub paper: bool,
     /// Independent runs; the one with the best held-out log-likelihood is kept.
     #[arg(long, default_value_t = 1)]
@@ -175,7 +180,7 @@ impl Args {
                 SelectBy::LogLikelihood => PreselectBy::LogLikelihood,
                 SelectBy::MeanDepth => PreselectBy::MeanDepth,
             }),
-            reorient: chosen(self.reorient),
+            reorient: self.reorient,
             reorient_every: chosen(self.reorient_every),
             recentre: (!self.paper).then_some(!self.no_recentre),
             update: (!self.paper).then_some(match self.update {
@@ -183,6 +188,7 @@ impl Args {
                 Update::Outermost => ComponentUpdate::Outermost,
             }),
             reflections: (!self.paper).then_some(!self.no_reflections),
+            words: (!self.paper).then_some(!self.no_words),
             trim_outliers: self.trim_outliers.then_some(true),
             paper: self.paper,
             eval_points: self.eval_points,

@@ -51,7 +51,7 @@ pub fn set_dotted(table: &mut toml::Table, key: &str, value: toml::Value) -> any
 
 /// The resolved config a run folder stored at `path`, as the table it meant when it was
 /// written: one written before recipes existed has no `paper` key and meant the paper's
-/// defaults ([`recipe::mark_legacy`]); a points config writes `reflections` and
+/// defaults ([`recipe::mark_legacy`]); a points config writes `reflections`, `words` and
 /// `trim_outliers` only when they are on, so absent they were off (and absent from every
 /// run made before they existed).
 pub fn read_resolved(path: &Path) -> anyhow::Result<toml::Table> {
@@ -65,7 +65,7 @@ pub fn read_resolved(path: &Path) -> anyhow::Result<toml::Table> {
         recipe::mark_legacy(&mut table);
     }
     if problem == "points" {
-        for key in ["reflections", "trim_outliers"] {
+        for key in ["reflections", "words", "trim_outliers"] {
             table.entry(key).or_insert(toml::Value::Boolean(false));
         }
     }

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use ifslab_strategies::problems::em::{
-    ComponentUpdate, EmConfig, MStepConfig, PreselectBy, ReorientConfig,
+    ComponentUpdate, EmConfig, MStepConfig, PreselectBy, ReorientConfig, code_count,
 };
 use serde::{Deserialize, Serialize};
 
@@ -54,7 +54,8 @@ pub struct PointsConfig {
     /// How the pre-selection winner is chosen [default: log-likelihood; paper: mean-depth].
     pub preselect_by: Option<PreselectBy>,
     /// Orientations tried per component by the re-orientation search, 0 = off
-    /// [default: 36; paper: 0].
+    /// [default: 36, or 3,096 for one or two maps at depth 6 ([`default_reorient`]);
+    /// paper: 0].
     pub reorient: Option<usize>,
     /// Re-orientation search every this many main iterations, 0 = only in pre-selection
     /// [default: 100; paper: 0].
@@ -69,6 +70,12 @@ pub struct PointsConfig {
     /// run folder written before it existed (it had none) reads as the run it was.
     #[serde(skip_serializing_if = "not_true")]
     pub reflections: Option<bool>,
+    /// The word search: a component that fits a two-map word of the code (`S_a∘S_b`,
+    /// `S_a∘S_a`) is replaced by the map it is made of, tried wherever the re-orientation
+    /// search runs [default: true; paper: false]. Written only when true, so a run folder
+    /// written before it existed reads as the run it was.
+    #[serde(skip_serializing_if = "not_true")]
+    pub words: Option<bool>,
     /// Leave out isolated points before fitting (their distance to their 8th nearest
     /// neighbour over 4 robust standard deviations above the median, log scale; at most
     /// 5 % of the points) [default: false: it did not help on the robustness suite]. Written
@@ -76,7 +83,7 @@ pub struct PointsConfig {
     #[serde(skip_serializing_if = "not_true")]
     pub trim_outliers: Option<bool>,
     /// The paper's algorithm: outermost update, fixed-depth pre-selection by mean depth, no
-    /// re-orientation, no recentring.
+    /// re-orientation or word search, no recentring.
     pub paper: bool,
     /// Training points that score candidates and re-orientations (0 = all).
     pub eval_points: usize,
@@ -126,6 +133,7 @@ impl Default for PointsConfig {
             recentre: None,
             update: None,
             reflections: None,
+            words: None,
             trim_outliers: None,
             paper: false,
             eval_points: 1000,
@@ -158,12 +166,33 @@ type Choices = (
     ComponentUpdate,
 );
 
-/// ifslab's orientations per component of the re-orientation search for point clouds:
-/// turns by 10° in 2-D, 35 Haar-random rotations in 3-D (12, the EM module's own default,
-/// left a third of the robustness suite's 3-D clouds unrecovered; robustness/README.md).
+/// ifslab's orientations per component of the re-orientation search for point clouds of
+/// three or more maps: turns by 10° in 2-D, 35 Haar-random rotations in 3-D (12, the EM
+/// module's own default, left a third of the robustness suite's 3-D clouds unrecovered;
+/// robustness/README.md).
 pub const DEFAULT_REORIENT: usize = 36;
 
-fn choices(paper: bool) -> Choices {
+/// Candidate × code evaluations one component's search costs at the default for four maps
+/// at depth 6 (36 orientations, 5,461 codes).
+const REORIENT_BUDGET: usize = DEFAULT_REORIENT * 4 * 5461;
+
+/// ifslab's orientations per component for K maps at depth D. A code of one or two maps
+/// gets as many as cost what 36 cost four maps at depth 6 (a search costs K × orientations
+/// × codes): 3,096 at depth 6, at most 4,096; sets that large are screened on an eighth of
+/// the points (`em::reorient`). Its pieces are few and cheap to search, and a piece turned
+/// wrong was the commonest way a two-map dust failed; on the robustness suite's two tuning
+/// splits the twelve 3-D two-map clouds kept their count (11 of 12) and rose from 0.89 to
+/// 0.95 mean agreement. Three or more maps get [`DEFAULT_REORIENT`] (239 for three maps,
+/// at the same cost, was better on one tuning split and worse on the other).
+pub fn default_reorient(k: usize, depth: usize) -> usize {
+    if k > 2 {
+        return DEFAULT_REORIENT;
+    }
+    let per = k.max(1).saturating_mul(code_count(k.max(1), depth).max(1));
+    (REORIENT_BUDGET / per).clamp(DEFAULT_REORIENT, 4096)
+}
+
+fn choices(paper: bool, k: usize, depth: usize) -> Choices {
     let e = if paper {
         EmConfig::paper()
     } else {
@@ -179,7 +208,7 @@ fn choices(paper: bool) -> Choices {
         if paper {
             e.reorient.rotations
         } else {
-            DEFAULT_REORIENT
+            default_reorient(k, depth)
         },
         e.reorient.every,
         e.recentre,
@@ -266,6 +295,7 @@ impl PointsConfig {
         c.recentre = Some(rc);
         c.update = Some(u);
         c.reflections = Some(self.reflections());
+        c.words = Some(self.words());
         c.trim_outliers = Some(self.trim_outliers());
         Ok(c)
     }
@@ -281,9 +311,14 @@ impl PointsConfig {
             .unwrap_or_else(|| !self.paper && MStepConfig::default().reflections)
     }
 
+    /// Whether the word search runs, as given or by the recipe.
+    pub fn words(&self) -> bool {
+        self.words.unwrap_or(!self.paper)
+    }
+
     /// The six choices `paper` fixes, as given or by default.
     fn choices(&self) -> Choices {
-        let d = choices(self.paper);
+        let d = choices(self.paper, self.k, self.depth);
         (
             self.preselect_schedule.unwrap_or(d.0),
             self.preselect_by.unwrap_or(d.1),
@@ -322,7 +357,7 @@ impl PointsConfig {
             }
         }
         if self.paper {
-            let paper = choices(true);
+            let paper = choices(true, self.k, self.depth);
             let given = [
                 (
                     "preselect_schedule",
@@ -334,6 +369,7 @@ impl PointsConfig {
                 ("recentre", self.recentre.map(|v| v != paper.4)),
                 ("update", self.update.map(|v| v != paper.5)),
                 ("reflections", self.reflections),
+                ("words", self.words),
                 ("trim_outliers", self.trim_outliers),
             ];
             if let Some((name, _)) = given.iter().find(|(_, differs)| *differs == Some(true)) {
@@ -367,7 +403,11 @@ impl PointsConfig {
             preselect_iterations: self.preselect_iterations,
             curriculum: schedule == PreselectSchedule::Curriculum,
             preselect_by: by,
-            reorient: ReorientConfig { rotations, every },
+            reorient: ReorientConfig {
+                rotations,
+                every,
+                words: self.words(),
+            },
             recentre,
             mstep: MStepConfig {
                 update,

@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 use crate::error::{Error, Result};
 use crate::problems::em::mstep::{ComponentUpdate, MStepConfig};
 use crate::problems::em::reorient::ReorientConfig;
+use crate::problems::em::words::WordMoves;
 
 /// How the pre-selection winner is chosen.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -124,6 +125,16 @@ impl EmConfig {
             },
             ..EmConfig::default()
         }
+    }
+}
+
+impl EmConfig {
+    /// The word search's bounds when it runs (`reorient.words`), else `None`.
+    pub fn word_moves(&self) -> Option<WordMoves> {
+        self.reorient.words.then_some(WordMoves {
+            max_scale: self.mstep.max_scale,
+            reflections: self.mstep.reflections,
+        })
     }
 }
 

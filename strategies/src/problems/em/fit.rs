@@ -104,6 +104,7 @@ pub fn fit(
     } else {
         Vec::new()
     };
+    let words = cfg.word_moves();
     let (start, candidates, chosen) = if cfg.pool > 1 {
         let (model, candidates, chosen) = preselect(data, &eval, &rotations, cfg)?;
         observer(Event::Preselected(&candidates));
@@ -129,9 +130,10 @@ pub fn fit(
         batch_size: cfg.batch_size,
         stream: mix_seed(cfg.seed, stream::MAIN),
         heldout: heldout.map(|h| (h, cfg.eval_every)),
-        reorient: (!rotations.is_empty()).then_some(ReorientStep {
+        reorient: (!rotations.is_empty() || words.is_some()).then_some(ReorientStep {
             points: &eval,
             rotations: &rotations,
+            words,
             every: cfg.reorient.every,
         }),
     };

@@ -55,6 +55,7 @@ pub mod mstep;
 pub mod preselect;
 pub mod reorient;
 pub mod train;
+pub mod words;
 
 pub use config::{EmConfig, MAX_CODES, PreselectBy, code_count};
 pub use data::PointSet;
@@ -67,3 +68,4 @@ pub use mstep::{
 pub use preselect::Candidate;
 pub use reorient::{ReorientConfig, Reorientation};
 pub use train::{IterationRecord, ReorientStep, Schedule, StepInfo, em_step, train};
+pub use words::{Unwind, Unwinding, WordMoves};

@@ -16,7 +16,8 @@
 //! The rotation set is a regular grid of angles in 2-D and seeded Haar-random rotations in
 //! higher dimensions (SO(1) is trivial, so there is nothing to try in 1-D). The candidates
 //! of one component are scored in parallel and chosen by (likelihood, index), so the result
-//! does not depend on the thread count.
+//! does not depend on the thread count. A set of more than [`SCREEN_ABOVE`] is screened on
+//! an eighth of the points first, its best [`SCREEN_KEEP`] scored on all.
 //!
 //! This step is not in the paper; `paper_repro/ifs_em/README.md` measures what it changes.
 
@@ -36,6 +37,16 @@ use crate::problems::em::model::EmModel;
 /// point), so that noise-level differences do not move it.
 pub const MIN_GAIN: f64 = 1e-3;
 
+/// With more orientations than this, every one is first scored on a strided
+/// [`SCREEN_SHARE`]-th of the evaluation points and only the best [`SCREEN_KEEP`] on all of
+/// them: a wrong orientation of a piece costs nats per point, far above the screening's
+/// noise, so a large set costs about an eighth of scoring it in full.
+pub const SCREEN_ABOVE: usize = 128;
+/// The share of the evaluation points (one in this many) that screens a large set.
+pub const SCREEN_SHARE: usize = 8;
+/// Orientations kept from the screening and scored on every evaluation point.
+pub const SCREEN_KEEP: usize = 16;
+
 /// How the re-orientation search runs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -46,6 +57,9 @@ pub struct ReorientConfig {
     /// In the main run, search after every this many iterations (0: never in the main run;
     /// the pre-selection candidates are searched at every depth of their curriculum).
     pub every: usize,
+    /// Run the word search ([`crate::problems::em::words`]) before each search of the main
+    /// run (not in pre-selection).
+    pub words: bool,
 }
 
 impl Default for ReorientConfig {
@@ -53,6 +67,7 @@ impl Default for ReorientConfig {
         ReorientConfig {
             rotations: 12,
             every: 100,
+            words: true,
         }
     }
 }
@@ -63,10 +78,11 @@ impl ReorientConfig {
         ReorientConfig {
             rotations: 0,
             every: 0,
+            words: false,
         }
     }
 
-    /// Whether the search runs at all.
+    /// Whether the orientation search runs at all.
     pub fn enabled(&self) -> bool {
         self.rotations >= 2
     }
@@ -130,6 +146,24 @@ pub fn orientation_set(h: usize, n: usize, seed: u64, reflections: bool) -> Vec<
     turns.into_iter().chain(mirrored).collect()
 }
 
+/// The mean log-likelihood of `points` under `model` with component `k` replaced by
+/// `candidate`; −∞ where it is not finite, so that such a candidate is never chosen.
+pub(crate) fn replaced_score(
+    model: &EmModel,
+    k: usize,
+    candidate: &Similitude,
+    points: &PointSet,
+) -> Result<f64> {
+    let mut m = model.clone();
+    m.components[k] = candidate.clone();
+    let ll = m.mean_log_likelihood(points)?;
+    Ok(if ll.is_finite() {
+        ll
+    } else {
+        f64::NEG_INFINITY
+    })
+}
+
 /// `S ∘ Q_c`: the similitude `s` preceded by the rotation `q` about `c`.
 fn turned(s: &Similitude, q: &DMatrix<f64>, c: &DVector<f64>) -> Similitude {
     let shift = c - q * c;
@@ -168,38 +202,50 @@ pub fn reorient(
     if rotations.is_empty() {
         return Ok((model, changes));
     }
+    let screen = (rotations.len() > SCREEN_ABOVE && points.len() >= SCREEN_SHARE * SCREEN_KEEP)
+        .then(|| {
+            let idx: Vec<usize> = (0..points.len()).step_by(SCREEN_SHARE).collect();
+            points.select(&idx)
+        });
     let mut base = model.mean_log_likelihood(points)?;
     for k in 0..model.k() {
         let Some((centre, _)) = model.invariant_moments() else {
             break;
         };
-        let trials: Vec<(f64, Similitude)> = rotations
+        let score = |q: &DMatrix<f64>, on: &PointSet| -> Result<(f64, Similitude)> {
+            let candidate = turned(&model.components[k], q, &centre);
+            Ok((replaced_score(&model, k, &candidate, on)?, candidate))
+        };
+        // The orientations scored on every point: all of them, or the screening's best.
+        let finalists: Vec<usize> = match &screen {
+            Some(few) => {
+                let mut screened: Vec<(f64, usize)> = rotations
+                    .par_iter()
+                    .enumerate()
+                    .map(|(j, q)| Ok((score(q, few)?.0, j)))
+                    .collect::<Result<_>>()?;
+                screened.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+                let mut keep: Vec<usize> =
+                    screened.iter().take(SCREEN_KEEP).map(|&(_, j)| j).collect();
+                keep.sort_unstable();
+                keep
+            }
+            None => (0..rotations.len()).collect(),
+        };
+        let trials: Vec<(f64, Similitude)> = finalists
             .par_iter()
-            .map(|q| {
-                let candidate = turned(&model.components[k], q, &centre);
-                let mut m = model.clone();
-                m.components[k] = candidate.clone();
-                let ll = m.mean_log_likelihood(points)?;
-                Ok((
-                    if ll.is_finite() {
-                        ll
-                    } else {
-                        f64::NEG_INFINITY
-                    },
-                    candidate,
-                ))
-            })
+            .map(|&j| score(&rotations[j], points))
             .collect::<Result<_>>()?;
         let best = trials
             .iter()
             .enumerate()
             .max_by(|a, b| a.1.0.total_cmp(&b.1.0).then(b.0.cmp(&a.0)));
-        if let Some((j, (ll, candidate))) = best
+        if let Some((i, (ll, candidate))) = best
             && *ll > base + MIN_GAIN
         {
             changes.push(Reorientation {
                 component: k,
-                rotation: j,
+                rotation: finalists[i],
                 gain: ll - base,
             });
             model.components[k] = candidate.clone();

@@ -28,6 +28,7 @@ use crate::problems::em::mstep::{
     ComponentUpdate, Degeneracy, MStepConfig, maximise, maximise_exact_blocks,
 };
 use crate::problems::em::reorient::{Reorientation, reorient};
+use crate::problems::em::words::{Unwinding, WordMoves, unwind};
 
 /// What one EM step saw and did.
 #[derive(Clone, Debug, PartialEq)]
@@ -103,6 +104,9 @@ pub struct IterationRecord {
     /// Components the re-orientation search turned after this iteration.
     #[serde(default)]
     pub reoriented: Vec<Reorientation>,
+    /// Components the word search replaced after this iteration.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub unwound: Vec<Unwinding>,
 }
 
 fn yes() -> bool {
@@ -132,6 +136,8 @@ pub struct ReorientStep<'a> {
     pub points: &'a PointSet,
     /// The rotations to try ([`crate::problems::em::reorient::rotation_set`]).
     pub rotations: &'a [DMatrix<f64>],
+    /// The word search's bounds, when it runs ([`crate::problems::em::words`]).
+    pub words: Option<WordMoves>,
     /// Search after every this many iterations (0: never).
     pub every: usize,
 }
@@ -164,11 +170,15 @@ pub fn train(
         let (next, info) = em_step(&model, points, mstep, &mut rng)?;
         model = next;
         let mut reoriented = Vec::new();
+        let mut unwound = Vec::new();
         if let Some(step) = &schedule.reorient
             && step.every > 0
             && (it + 1) % step.every == 0
             && it + 1 < schedule.iterations
         {
+            if let Some(moves) = &step.words {
+                (model, unwound) = unwind(&model, step.points, moves)?;
+            }
             (model, reoriented) = reorient(&model, step.points, step.rotations)?;
         }
         let heldout_log_likelihood = match schedule.heldout {
@@ -188,6 +198,7 @@ pub fn train(
             degeneracies: info.degeneracies,
             accepted: info.accepted,
             reoriented,
+            unwound,
         };
         observer(&rec);
         history.push(rec);
