@@ -37,10 +37,11 @@ use crate::problems::em::model::EmModel;
 /// point), so that noise-level differences do not move it.
 pub const MIN_GAIN: f64 = 1e-3;
 
-/// With more orientations than this, every one is first scored on a strided
-/// [`SCREEN_SHARE`]-th of the evaluation points and only the best [`SCREEN_KEEP`] on all of
-/// them: a wrong orientation of a piece costs nats per point, far above the screening's
-/// noise, so a large set costs about an eighth of scoring it in full.
+/// With more candidate orientations than this (mirror images counted; 128 keeps the
+/// default 36 and their mirrors, and every committed run, unscreened), every one is first
+/// scored on a strided [`SCREEN_SHARE`]-th of the evaluation points and only the best
+/// [`SCREEN_KEEP`] on all of them: a wrong orientation of a piece costs nats per point, far
+/// above the screening's noise, so a large set costs about an eighth of scoring it in full.
 pub const SCREEN_ABOVE: usize = 128;
 /// The share of the evaluation points (one in this many) that screens a large set.
 pub const SCREEN_SHARE: usize = 8;
