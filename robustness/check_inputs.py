@@ -3,7 +3,7 @@
 
     python3 check_inputs.py [OUTDIR] [--overlays]
 
-For every split under OUTDIR (default robustness/inputs):
+For every split under OUTDIR (default robustness/inputs: tune, tune2, test):
 - every listed file exists, opens, and has the recorded size, mode and format;
 - every truth file is a valid ifslab-code/1 (finite, shapes, probabilities summing to 1,
   every map contractive) or ifslab-pattern/1 (indices in range, every map's scale < 1);
@@ -13,6 +13,7 @@ For every split under OUTDIR (default robustness/inputs):
   with the picture: recall = share of the truth's pixels the picture covers (1 px tolerance),
   precision = share of the picture's figure pixels near the truth (1 px + half the line).
   Both must be ≥ 0.9 (0.85 for the tiny 64-pixel pictures).
+And every pair of the splits present is disjoint: no seed, random truth or photo crop shared.
 --overlays writes OUTDIR/checks/<split>/overlay_<family>.png: picture only green, truth only
 magenta, both white.
 """
@@ -299,7 +300,7 @@ def main():
     a = ap.parse_args()
     bad = 0
     ids = {}
-    for split in ["tune", "test"]:
+    for split in ["tune", "tune2", "test"]:
         d = a.outdir / split
         if not (d / "manifest.json").exists():
             continue
@@ -315,27 +316,32 @@ def main():
         for m in msgs:
             print("  FAIL", m)
         bad += len(msgs)
-    if len(ids) == 2:
-        # disjoint splits: seeds, random truths, crops
-        seeds = lambda m: {tuple(c["seed"]) for c in m["cases"]}
-        if seeds(ids["tune"]) & seeds(ids["test"]):
-            print("  FAIL seeds shared between splits")
-            bad += 1
-        truths = {}
-        for split, m in ids.items():
-            for c in m["cases"]:
-                if c["truth"] and c["family"] != "codes_classic":
-                    doc = json.loads((a.outdir / split / c["truth"]).read_text())
-                    doc.pop("name"), doc.pop("meta", None)
-                    truths.setdefault(json.dumps(doc, sort_keys=True), set()).add(split)
-        shared = sum(len(s) > 1 for s in truths.values())
-        if shared:
-            print(f"  FAIL {shared} truths shared between splits")
-            bad += 1
-        crops = lambda m: {(c["source"], tuple(c["crop"])) for c in m["cases"] if c["family"] == "photos"}
-        if crops(ids["tune"]) & crops(ids["test"]):
-            print("  FAIL photo crops shared between splits")
-            bad += 1
+    # Every pair of splits present is disjoint: seeds, random truths, photo crops.
+    seeds = lambda m: {tuple(c["seed"]) for c in m["cases"]}
+    crops = lambda m: {(c["source"], tuple(c["crop"])) for c in m["cases"] if c["family"] == "photos"}
+
+    def truths(split, m):
+        out = set()
+        for c in m["cases"]:
+            if c["truth"] and c["family"] != "codes_classic":
+                doc = json.loads((a.outdir / split / c["truth"]).read_text())
+                doc.pop("name"), doc.pop("meta", None)
+                out.add(json.dumps(doc, sort_keys=True))
+        return out
+
+    names = list(ids)
+    for i, x in enumerate(names):
+        for y in names[i + 1 :]:
+            if seeds(ids[x]) & seeds(ids[y]):
+                print(f"  FAIL seeds shared between {x} and {y}")
+                bad += 1
+            shared = len(truths(x, ids[x]) & truths(y, ids[y]))
+            if shared:
+                print(f"  FAIL {shared} truths shared between {x} and {y}")
+                bad += 1
+            if crops(ids[x]) & crops(ids[y]):
+                print(f"  FAIL photo crops shared between {x} and {y}")
+                bad += 1
     print("OK" if bad == 0 else f"{bad} problems")
     sys.exit(1 if bad else 0)
 

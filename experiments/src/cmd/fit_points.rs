@@ -120,9 +120,10 @@ pub struct Args {
     /// no re-orientation or word search, no recentring.
     #[arg(long, conflicts_with_all = ["preselect_schedule", "preselect_by", "reorient", "reorient_every", "no_recentre", "update", "no_reflections", "no_words", "trim_outliers"])]
     pub paper: bool,
-    /// Independent runs; the one with the best held-out log-likelihood is kept.
-    #[arg(long, default_value_t = 1)]
-    pub runs: usize,
+    /// Independent runs; the one with the best held-out log-likelihood is kept [default: 4
+    /// for up to three maps, else 1; with --paper 1].
+    #[arg(long)]
+    pub runs: Option<usize>,
     /// Fraction of the points held out for evaluation.
     #[arg(long, default_value_t = 0.1)]
     pub heldout: f64,

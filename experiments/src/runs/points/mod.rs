@@ -278,7 +278,7 @@ pub fn run(
     // The fits' work, before anything is written (a refused start leaves no folder).
     if cfg.sweep_pool.is_empty() {
         cfg.em_config(cfg.seed, cfg.pool)
-            .check_work(data.train.len(), cfg.runs)?;
+            .check_work(data.train.len(), cfg.runs())?;
     }
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     if !resume {
@@ -333,7 +333,7 @@ fn fit_runs(
     let mut runs = Vec::new();
     let mut best: Option<(f64, usize, EmFit)> = None;
     let mut resumed = 0;
-    for r in 0..cfg.runs {
+    for r in 0..cfg.runs() {
         let em = cfg.em_config(mix_seed(cfg.seed, r as u64), cfg.pool);
         let label = run_label(r);
         let (result, secs) = match fits::load(dir, &label, &em)? {
@@ -344,7 +344,7 @@ fn fit_runs(
             None => {
                 let t0 = Instant::now();
                 progress.start(
-                    &format!("EM run {}/{}", r + 1, cfg.runs),
+                    &format!("EM run {}/{}", r + 1, cfg.runs()),
                     em.iterations as u64,
                 );
                 let result = fit(train, heldout, &em, &mut |e| {
@@ -400,7 +400,7 @@ fn fit_runs(
         source: data.source.clone(),
         dim: data.all.dim(),
         points: [data.all.len(), data.train.len(), data.test.len()],
-        fits: cfg.runs,
+        fits: cfg.runs(),
         resumed_fits: resumed,
         failed_fits: 0,
         converged_fits,
