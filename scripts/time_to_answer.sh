@@ -26,6 +26,8 @@ commands=(
   "sdf fit, Koch depth 5|$BIN sdf fit $IN/patterns_koch/patterns_koch-00.png --pattern koch --depth 5"
   "flame learn|$BIN flame learn $IN/shapes/shapes-00.png"
   "fit-points, 3-D, K 4|$BIN fit-points $IN/points3d/points3d-00.csv --k 4"
+  "fit-points, 3-D, K 3|$BIN fit-points $IN/points3d/points3d-01.npy --k 3"
+  "fit-points, 3-D, K 2|$BIN fit-points $IN/points3d/points3d-04.csv --k 2"
 )
 declare -A times
 for ((r = 0; r < N; r++)); do
