@@ -4,7 +4,8 @@
 //!
 //! - [`optim`]: the generic optimisers — [`optim::adam`], [`optim::hybrid`] (Adam with
 //!   simulated-annealing phases), [`optim::annealing`], [`optim::noisy`], [`optim::gd`];
-//! - [`registry`]: every optimiser a run can name (one line each);
+//! - [`registry`]: every optimiser a run can name (one line each), and
+//!   [`strategy_config`], the `[strategy]` section of every problem's config that picks one;
 //! - [`driver`]: what every iterative optimiser shares (the `Differentiable` problem
 //!   interface, hyper-parameter `Params`, checkpoints, logs);
 //! - [`problems`]: [`problems::image`] (image → IFS code with the differentiable splatter and
@@ -24,5 +25,6 @@ pub mod plugins;
 pub mod problems;
 pub mod recipe;
 pub mod registry;
+pub mod strategy_config;
 
 pub use error::{Error, Result};

@@ -12,7 +12,7 @@ use crate::driver::Params;
 use crate::error::{Error, Result};
 use crate::optim::adam::AdamConfig;
 use crate::optim::gd::GdConfig;
-use crate::problems::image::config::StrategyConfig;
+use crate::strategy_config::StrategyConfig;
 
 /// One layer: `xforms` generators; the first `linear` of them are pre-affine maps only, the
 /// others apply every variation of `variations` (weight 1 each) after their pre-affine map.

@@ -8,11 +8,11 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
 use crate::optim::adam::AdamConfig;
-use crate::problems::image::config::StrategyConfig;
 use crate::problems::image::target::Polarity;
 use crate::problems::sdf::init::{PROBE_STEPS, SdfInit};
 use crate::problems::sdf::learned::LearnedConfig;
 use crate::problems::sdf::problem::SdfLossConfig;
+use crate::strategy_config::StrategyConfig;
 
 /// The most Adam steps `init.probe_steps` may ask for per start (a whole fit's worth of
 /// probing many times over; the run's work budget refuses long ones before this does).
