@@ -111,17 +111,14 @@ pub fn rotation_sqrt(r: &DMatrix<f64>) -> Option<DMatrix<f64>> {
 fn roots(q: DMatrix<f64>) -> Vec<(Unwind, DMatrix<f64>)> {
     let mut out = vec![(Unwind::Root(1), -&q)];
     if q.nrows() == 3 {
-        // The axis: Q − Qᵀ = 2 sin θ [a]ₓ; near θ = 0 any axis will do (then H·Q ≈ H).
+        // The axis: Q − Qᵀ = 2 sin θ [a]ₓ (near θ = 0 there is no axis to turn about).
         let w = &q - q.transpose();
         let a = nalgebra::Vector3::new(w[(2, 1)], w[(0, 2)], w[(1, 0)]);
         if a.norm() > 1e-9 {
             let a = a.normalize();
-            let mut h = DMatrix::<f64>::identity(3, 3) * -1.0;
-            for i in 0..3 {
-                for j in 0..3 {
-                    h[(i, j)] += 2.0 * a[i] * a[j];
-                }
-            }
+            let h = DMatrix::from_fn(3, 3, |i, j| {
+                2.0 * a[i] * a[j] - if i == j { 1.0 } else { 0.0 }
+            });
             let qh = &q * h;
             out.push((Unwind::Root(2), qh.clone()));
             out.push((Unwind::Root(3), -qh));

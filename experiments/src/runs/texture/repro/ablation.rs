@@ -1,7 +1,12 @@
 //! The one-choice-at-a-time settings: each choice of one preset switched to the other's
 //! (matching criterion, search grid, window, distance centre, ΔE_max, cap, passes).
 
-use super::*;
+use ifslab_strategies::problems::fractal_coding::{
+    EncoderConfig, Matching, Preset, Reduction, SearchGrid,
+};
+
+use super::Variant;
+use super::tables::cap_name;
 
 /// The settings of the one-choice-at-a-time table: the plain encoder's matching × grid (and
 /// a few windows), then each refined preset with one of its choices switched to the other's.

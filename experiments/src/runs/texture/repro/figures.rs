@@ -1,7 +1,11 @@
 //! Figs. 4–6 of the reproduction: 8× crops against the interpolating filters, one region
 //! at 1×–8×, and the refinement passes, as montages and the objective per pass.
 
-use super::*;
+use std::path::Path;
+
+use ifslab_strategies::problems::fractal_coding::{
+    Filter, FractalCode, Preset, Texture, decode, upsample,
+};
 
 /// A row of panels of equal height with 4-texel white gaps (grey if every panel is grey).
 pub(super) fn montage(panels: &[Texture]) -> anyhow::Result<Texture> {

@@ -21,9 +21,8 @@ use std::time::Instant;
 
 use anyhow::Context;
 use ifslab_strategies::problems::fractal_coding::{
-    CoordStorage, EncodeStats, EncoderConfig, Filter, FractalCode, MAX_TOTAL_CANDIDATES, Matching,
-    Preset, Reduction, RefineConfig, SearchGrid, Texture, bilinear_into, decode, decode_into,
-    encode, laplacian_variance, load_dir, output_size, psnr, refine, save_dir, upsample,
+    CoordStorage, EncodeStats, EncoderConfig, Filter, FractalCode, Preset, RefineConfig, Texture,
+    decode, encode, laplacian_variance, load_dir, psnr, refine, save_dir, upsample,
 };
 use serde::{Deserialize, Serialize};
 use serde_json::json;
@@ -38,7 +37,7 @@ mod timing;
 
 use ablation::ablation_variants;
 use figures::figures;
-use tables::{ablation_table, append_tables, cap_name, paper_table, timing_table};
+use tables::{ablation_table, append_tables, paper_table, timing_table};
 use timing::timing;
 
 /// What to reproduce, and where.

@@ -1,7 +1,11 @@
 //! The Markdown tables of the reproduction: the paper's published Table I beside ours, the
 //! hold-out, the one-choice-at-a-time ablation and the decoding timings.
 
-use super::*;
+use ifslab_strategies::problems::fractal_coding::MAX_TOTAL_CANDIDATES;
+
+use super::{
+    PAPER_SISALFLOOR_BASELINES, PAPER_TABLE_I, TextureDone, TimingRow, Variant, VariantResult,
+};
 
 pub(super) fn cap_name(c: Option<usize>) -> String {
     c.map_or("all".into(), |n| n.to_string())

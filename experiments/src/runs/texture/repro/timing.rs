@@ -1,7 +1,13 @@
 //! Decoding timings: 8× fractal decoding against bilinear upsampling to the same size, per
 //! frame, on all threads and on one (medians of repeats).
 
-use super::*;
+use std::time::Instant;
+
+use ifslab_strategies::problems::fractal_coding::{
+    Filter, FractalCode, Texture, bilinear_into, decode_into, output_size, upsample,
+};
+
+use super::TimingRow;
 
 /// Median seconds of `reps` runs of `f`.
 pub(super) fn median_secs(

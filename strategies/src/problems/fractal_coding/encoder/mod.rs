@@ -33,8 +33,7 @@
 //! For 8-bit sources every quantity of the raw matching is an integer below 2²⁴, so its scores
 //! are exact in `f32` and the encoder equals a brute-force search bit for bit (tested).
 
-use std::cmp::Ordering;
-use std::sync::atomic::{AtomicU64, Ordering as AtomicOrdering};
+use std::sync::atomic::AtomicU64;
 use std::time::Instant;
 
 use rayon::prelude::*;

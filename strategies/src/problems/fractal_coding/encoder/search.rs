@@ -1,8 +1,14 @@
 //! The encoder's search: for every texel of the source, the candidate blocks of the reduced
 //! texture R inside its window scored against the texel's range block, the best kept per
-//! texel (`TopK`), row by row in parallel, with AVX2 kernels where the CPU has them.
+//! texel (`TopK`), one row at a time (`encode` runs the rows in parallel), with AVX2 kernels
+//! where the CPU has them.
 
-use super::*;
+use std::cmp::Ordering;
+use std::sync::atomic::{AtomicU64, Ordering as AtomicOrdering};
+
+use super::{EncoderConfig, HALF_MAX, HALF_MIN, MAX_TOTAL_CANDIDATES, Matching, SearchGrid};
+use crate::error::{Error, Result};
+use crate::problems::fractal_coding::texture::Texture;
 
 /// The candidate blocks at positions (px + s·i, py + s·j) of R, as structure-of-arrays planes.
 struct Lattice {
