@@ -446,6 +446,7 @@ fn quick_inversion_writes_every_output_and_resumes() {
         "init = \"collage\"",
         "em_reflections = true",
         "sigma_final = 0.4",
+        "lpips_weight = 0.0",
         "kind = \"cold_hybrid\"",
     ] {
         assert!(cfg.contains(want), "{want}: {cfg}");
@@ -457,13 +458,27 @@ fn quick_inversion_writes_every_output_and_resumes() {
     let (ok, msg) = ifslab(&paper_args);
     assert!(ok, "{msg}");
     let cfg = std::fs::read_to_string(Path::new(&paper).join("config.toml")).unwrap();
-    for want in ["paper = true", "init = \"random\"", "kind = \"hybrid\""] {
+    for want in [
+        "paper = true",
+        "init = \"random\"",
+        "kind = \"hybrid\"",
+        "lpips_weight = 2.0",
+    ] {
         assert!(cfg.contains(want), "{want}: {cfg}");
     }
     assert!(
         !cfg.contains("sigma_final") && !cfg.contains("em_reflections"),
         "{cfg}"
     );
+    // `--lpips` sets the term's weight under either recipe.
+    let weighted = tmp.path().join("lpips").to_string_lossy().into_owned();
+    let mut weighted_args = args.to_vec();
+    *weighted_args.last_mut().unwrap() = &weighted;
+    weighted_args.extend(["--lpips", "0.5"]);
+    let (ok, msg) = ifslab(&weighted_args);
+    assert!(ok, "{msg}");
+    let cfg = std::fs::read_to_string(Path::new(&weighted).join("config.toml")).unwrap();
+    assert!(cfg.contains("lpips_weight = 0.5"), "{cfg}");
     // A second fresh run into the same folder is refused; --resume continues (already done).
     let (ok, msg) = ifslab(&args);
     assert!(!ok && msg.contains("--resume"), "{msg}");

@@ -37,7 +37,7 @@ pub struct Args {
     /// start, the hybrid with its hot annealing, σ fixed, 2000 iterations of 2000 × 250
     /// points. ifslab's (the default): the collage start (or the EM start with maps that may
     /// mirror, whichever matches the picture better), the cold hybrid,
-    /// σ 1 → 0.4, 1000 iterations of 1000 × 110 points (robustness/README.md).
+    /// σ 1 → 0.4, 1000 iterations of 1000 × 110 points, no LPIPS term (robustness/README.md).
     #[arg(long)]
     pub paper: bool,
     /// Any registered strategy (hybrid, cold_hybrid, adam, annealing, noisy, gd, and the
@@ -69,6 +69,10 @@ pub struct Args {
     /// --sigma-final equal to --sigma keeps it fixed). [default: 0.4; --paper: fixed]
     #[arg(long)]
     pub sigma_final: Option<f64>,
+    /// Weight of the LPIPS term of the loss (AlexNet features; needs the weights that
+    /// `ifslab weights fetch` puts in the per-user cache). [default: 0; --paper: 2]
+    #[arg(long, value_name = "W")]
+    pub lpips: Option<f64>,
     /// Where the splat runs: cpu, or cuda (an NVIDIA GPU; needs a build with --features cuda).
     #[arg(long, default_value = "cpu")]
     pub device: ifslab::render::splat::SplatDevice,
@@ -204,6 +208,9 @@ fn config_from_flags(a: &Args) -> anyhow::Result<InversionConfig> {
     set("renderer.sigma", a.sigma.into());
     if let Some(end) = a.sigma_final {
         set("renderer.sigma_final", end.into());
+    }
+    if let Some(w) = a.lpips {
+        set("loss.lpips_weight", w.into());
     }
     if !a.device.is_cpu() {
         set("renderer.device", value(&a.device)?);

@@ -208,6 +208,15 @@ pub const SPLAT_POINTS_PER_SECOND_PER_THREAD: f64 = 2e7;
 /// supersampled pixels, Table 3's best row (paper_repro/chaotic_splatting/README.md).
 pub const DEFAULT_SIGMA_FINAL: f64 = 0.4;
 
+/// ifslab's weight of the LPIPS term (`loss.lpips_weight`; the paper's is 2). On the
+/// robustness suite's tuning split (24 random codes with their true map count, 22 with 10,
+/// six classic codes with both) the fits without it scored as the fits with it within their
+/// noise, in about 60 % of the time (the test split: 0.51 against 0.50 on random codes),
+/// and the chaotic-splatting reproduction's Table 4 found the same at its budget ("w/o
+/// LPIPS", `paper_repro/chaotic_splatting/README.md`). Without it the default loss
+/// also needs no weights file: a machine without the file runs the same recipe.
+pub const DEFAULT_LPIPS_WEIGHT: f64 = 0.0;
+
 /// Prefixes a validation error with the config section it came from.
 fn in_section<T>(section: &str, r: Result<T>) -> Result<T> {
     r.map_err(|e| match e {
@@ -274,6 +283,7 @@ impl InversionConfig {
     /// | `model.em_reflections` | true (the EM start's maps may mirror) | false |
     /// | `strategy` | `cold_hybrid` from a collage or EM start, `hybrid` from a random one | `hybrid` |
     /// | `renderer.sigma_final` | 0.4 (σ 1 → 0.4 over the run) | none (σ fixed) |
+    /// | `loss.lpips_weight` | 0 (MS-MSE and D-SSIM only) | 2 |
     pub fn preset(paper: bool, table: &toml::Table) -> toml::Table {
         use crate::optim::hybrid::ColdHybridConfig;
         use crate::recipe::{get_dotted, table_of};
@@ -303,6 +313,7 @@ impl InversionConfig {
             ("model.init", "collage".into()),
             ("model.em_reflections", true.into()),
             ("renderer.sigma_final", DEFAULT_SIGMA_FINAL.into()),
+            ("loss.lpips_weight", DEFAULT_LPIPS_WEIGHT.into()),
         ];
         let mut preset = table_of(keys);
         if !named {
@@ -603,7 +614,22 @@ mod tests {
         assert_eq!(cfg.model.start_size, None);
         assert_eq!(cfg.strategy.name(), "cold_hybrid");
         assert_eq!(cfg.renderer.sigma_final, Some(DEFAULT_SIGMA_FINAL));
-        assert_eq!(cfg.loss, LossConfig::default());
+        // No LPIPS term (and so no weights file needed); every other term as the paper's.
+        assert_eq!(
+            cfg.loss,
+            LossConfig {
+                lpips_weight: DEFAULT_LPIPS_WEIGHT,
+                ..LossConfig::default()
+            }
+        );
+        assert_eq!(DEFAULT_LPIPS_WEIGHT, 0.0);
+        // The config's own weight wins.
+        let with = InversionConfig::from_toml(
+            &format!("{MINIMAL}[loss]\nlpips_weight = 2.0\n"),
+            Path::new("c.toml"),
+        )
+        .unwrap();
+        assert_eq!(with.loss, LossConfig::default());
         let back = InversionConfig::from_toml(&cfg.to_toml(), Path::new("c.toml")).unwrap();
         assert_eq!(back, cfg);
         // A random start under ifslab's recipe gets the paper's hot hybrid, as the command
@@ -647,6 +673,7 @@ mod tests {
         assert_eq!(paper.strategy.name(), "hybrid");
         assert_eq!(paper.strategy, StrategyConfig::default());
         assert_eq!(paper.renderer.sigma_final, None);
+        assert_eq!(paper.loss.lpips_weight, 2.0);
         // Its resolved table has no σ schedule, and reads back as itself.
         let text = paper.to_toml();
         assert!(!text.contains("sigma_final"), "{text}");
