@@ -37,8 +37,7 @@ pub struct Args {
     /// start, the hybrid with its hot annealing, σ fixed, 2000 iterations of 2000 × 250
     /// points. ifslab's (the default): the collage start (or the EM start with maps that may
     /// mirror, whichever matches the picture better), the cold hybrid,
-    /// σ 1 → 0.4, 1000 iterations of 1000 × 110 points, no LPIPS term, a 192² target
-    /// (robustness/README.md).
+    /// σ 1 → 0.4, 1000 iterations of 1000 × 110 points, no LPIPS term (robustness/README.md).
     #[arg(long)]
     pub paper: bool,
     /// Any registered strategy (hybrid, cold_hybrid, adam, annealing, noisy, gd, and the
@@ -51,9 +50,9 @@ pub struct Args {
     /// one the paper's (τ₀ 1, noise 0.2). [default: the recipe's: hybrid]
     #[arg(long)]
     pub strategy: Option<String>,
-    /// Side of the (square) target and render in pixels. [default: 192; --paper: 128]
-    #[arg(long)]
-    pub size: Option<usize>,
+    /// Side of the (square) target and render in pixels.
+    #[arg(long, default_value_t = 128)]
+    pub size: usize,
     /// svd | naive (affine maps).
     #[arg(long, default_value = "svd")]
     pub param: String,
@@ -176,9 +175,7 @@ fn config_from_flags(a: &Args) -> anyhow::Result<InversionConfig> {
         },
         spec.clone().into(),
     );
-    if let Some(side) = a.size {
-        set("target.size", (side as i64).into());
-    }
+    set("target.size", (a.size as i64).into());
     set("target.polarity", value(&polarity)?);
     set("model.family", a.family.clone().into());
     set("model.maps", (a.maps as i64).into());

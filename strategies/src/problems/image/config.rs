@@ -208,13 +208,6 @@ pub const SPLAT_POINTS_PER_SECOND_PER_THREAD: f64 = 2e7;
 /// supersampled pixels, Table 3's best row (paper_repro/chaotic_splatting/README.md).
 pub const DEFAULT_SIGMA_FINAL: f64 = 0.4;
 
-/// ifslab's side of the target and render (`target.size`; the paper's recipe keeps 128).
-/// Without the LPIPS term a run at 192² costs what one at 128² does (the splat's cost is in
-/// its points, the other terms are cheap per pixel), and on the robustness suite's tuning
-/// split it scored higher with 10 maps (random codes 0.551 → 0.579) and the same with the
-/// true map count (0.576 → 0.576); see `robustness/README.md`.
-pub const DEFAULT_SIZE: usize = 192;
-
 /// ifslab's weight of the LPIPS term (`loss.lpips_weight`; the paper's is 2). On the
 /// robustness suite's tuning split (24 random codes with their true map count, 22 with 10,
 /// six classic codes with both) the fits without it scored as the fits with it within their
@@ -291,7 +284,6 @@ impl InversionConfig {
     /// | `strategy` | `cold_hybrid` from a collage or EM start, `hybrid` from a random one | `hybrid` |
     /// | `renderer.sigma_final` | 0.4 (σ 1 → 0.4 over the run) | none (σ fixed) |
     /// | `loss.lpips_weight` | 0 (MS-MSE and D-SSIM only) | 2 |
-    /// | `target.size` | 192 | 128 |
     pub fn preset(paper: bool, table: &toml::Table) -> toml::Table {
         use crate::optim::hybrid::ColdHybridConfig;
         use crate::recipe::{get_dotted, table_of};
@@ -322,7 +314,6 @@ impl InversionConfig {
             ("model.em_reflections", true.into()),
             ("renderer.sigma_final", DEFAULT_SIGMA_FINAL.into()),
             ("loss.lpips_weight", DEFAULT_LPIPS_WEIGHT.into()),
-            ("target.size", (DEFAULT_SIZE as i64).into()),
         ];
         let mut preset = table_of(keys);
         if !named {
@@ -632,8 +623,6 @@ mod tests {
             }
         );
         assert_eq!(DEFAULT_LPIPS_WEIGHT, 0.0);
-        // A 192² target; the paper's recipe keeps 128².
-        assert_eq!((cfg.target.size, DEFAULT_SIZE), (192, 192));
         // The config's own weight wins.
         let with = InversionConfig::from_toml(
             &format!("{MINIMAL}[loss]\nlpips_weight = 2.0\n"),
@@ -685,7 +674,6 @@ mod tests {
         assert_eq!(paper.strategy, StrategyConfig::default());
         assert_eq!(paper.renderer.sigma_final, None);
         assert_eq!(paper.loss.lpips_weight, 2.0);
-        assert_eq!(paper.target.size, 128);
         // Its resolved table has no σ schedule, and reads back as itself.
         let text = paper.to_toml();
         assert!(!text.contains("sigma_final"), "{text}");
