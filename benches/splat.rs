@@ -2,7 +2,9 @@
 //! generation (chaos game), splat forward (framing + splat + pooling), loss (value and
 //! gradient through candle, LPIPS excluded), splat backward (reverse pass to the maps), one
 //! annealing candidate (forward + MS-MSE), and a whole gradient iteration of the image
-//! problem (θ → loss and ∂loss/∂θ).
+//! problem (θ → loss and ∂loss/∂θ). With `--features cuda`, each setting again with the
+//! splat on the GPU (`iteration_*_cuda`), where `full_iteration_fused` and
+//! `anneal_candidate_fused` keep the image, the loss and its gradient on the GPU.
 //!
 //! Settings (2000 × 250 trajectories, 10 dropped: 480k points):
 //! - `paper`: 1024² output, 5× supersampling, σ = 2.5 supersampled pixels, coverage;

@@ -1,5 +1,7 @@
 //! The splat on the GPU (`--features cuda`), against the CPU kernel: the same image, the
-//! same gradients, finite differences of its own forward pass, determinism, the candle op.
+//! same gradients, finite differences of its own forward pass, determinism, the candle op;
+//! the loss on the GPU (MS-MSE, D-SSIM) against the CPU loss, and the fused iteration (image,
+//! loss and gradient on the GPU) against the candle route.
 //!
 //! These tests need an NVIDIA GPU, its driver and NVRTC, and fail without them (except
 //! `nvrtc_compiles_the_kernels`, which needs NVRTC only). CI compiles them; they run on a GPU
@@ -8,6 +10,8 @@
 
 use candle_core::{DType, Device, Var};
 use ifslab::chaos::ChaosGame;
+use ifslab::loss::cuda::GpuLoss;
+use ifslab::loss::{DSsim, ImageLoss, LossBreakdown, LossConfig, MsMse, Objective, Real};
 use ifslab::model::Affine2;
 use ifslab::render::splat::{
     self, Blend, SplatConfig, SplatDevice, SplatFraming, SplatOp, SplatReal, maps_from_tensor,
@@ -342,4 +346,302 @@ fn concurrent_calls_from_many_threads_agree_with_sequential_ones() {
     std::thread::spawn(move || drop(together)).join().unwrap();
     let again = run(0);
     assert_eq!(again.0, alone[0].0);
+}
+
+// ---- The loss on the GPU and the fused iteration -------------------------------------------
+
+#[test]
+fn nvrtc_compiles_the_loss_kernels() {
+    for arch in ["compute_75", "compute_90"] {
+        let n = ifslab::loss::cuda::compile_only(arch).unwrap();
+        assert!(n > 1000, "{arch}: PTX of {n} bytes");
+    }
+}
+
+/// A reproducible image in [0, 1]; `sparse` leaves 70 % of the pixels at 0 (a fractal on
+/// black), otherwise every pixel is uniform in [0, 1).
+fn image<T: Real>(n: usize, salt: u64, sparse: bool) -> Vec<T> {
+    let mut s = salt.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    (0..n)
+        .map(|_| {
+            s = s
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            let u = (s >> 40) as f64 / (1u64 << 24) as f64;
+            T::from(if sparse && u < 0.7 { 0.0 } else { u }).unwrap()
+        })
+        .collect()
+}
+
+/// Sizes with sides that are not multiples of the pooling factor (odd, prime, 1 pixel wide)
+/// or smaller than the SSIM window, and the paper's 1024².
+const LOSS_SIZES: [(usize, usize); 7] = [
+    (1024, 1024),
+    (37, 23),
+    (129, 70),
+    (300, 257),
+    (5, 3),
+    (1, 9),
+    (250, 1),
+];
+
+/// The CPU's weighted loss and gradient: `wm·MS-MSE + ws·D-SSIM`.
+fn cpu_loss<T: Real>(
+    loss: &GpuLoss,
+    p: &[T],
+    t: &[T],
+    w: usize,
+    h: usize,
+) -> (Option<f64>, Option<f64>, Vec<T>) {
+    let mut g = vec![T::zero(); w * h];
+    let (mut vm, mut vs) = (None, None);
+    if loss.msmse_weight > 0.0 {
+        let (v, gm) = loss.msmse.value_and_grad(p, t, w, h).unwrap();
+        let wt = T::from(loss.msmse_weight).unwrap();
+        g.iter_mut().zip(&gm).for_each(|(a, b)| *a = wt * *b);
+        vm = Some(v.to_f64().unwrap());
+    }
+    if loss.dssim_weight > 0.0 {
+        let (v, gs) = loss.dssim.value_and_grad(p, t, w, h).unwrap();
+        let wt = T::from(loss.dssim_weight).unwrap();
+        g.iter_mut().zip(&gs).for_each(|(a, b)| *a = *a + wt * *b);
+        vs = Some(v.to_f64().unwrap());
+    }
+    (vm, vs, g)
+}
+
+fn loss_matches<T: Real + SplatReal>(tol: f64) {
+    let terms = [(10.0, 1.0), (1.0, 0.0), (0.0, 1.0)];
+    for &(w, h) in &LOSS_SIZES {
+        let p: Vec<T> = image(w * h, 1 + w as u64, true);
+        let t: Vec<T> = image(w * h, 7 + h as u64, false);
+        for &(wm, ws) in &terms {
+            let loss = GpuLoss {
+                msmse: MsMse::default(),
+                msmse_weight: wm,
+                dssim: DSsim::default(),
+                dssim_weight: ws,
+            };
+            let (v, g) = loss.value_and_grad(&p, &t, w, h).unwrap();
+            let (cm, cs, cg) = cpu_loss(&loss, &p, &t, w, h);
+            let close = |a: Option<f64>, b: Option<f64>| match (a, b) {
+                (Some(a), Some(b)) => (a - b).abs() <= tol * b.abs().max(1e-12),
+                (None, None) => true,
+                _ => false,
+            };
+            assert!(
+                close(v.msmse, cm) && close(v.dssim, cs),
+                "{w}×{h} ({wm}, {ws}): GPU {v:?} against CPU msmse {cm:?} dssim {cs:?}"
+            );
+            let (d, m) = max_abs(&g, &cg);
+            let same = g.iter().zip(&cg).filter(|(a, b)| a == b).count();
+            eprintln!(
+                "{} {w}×{h} ({wm}, {ws}): values {:?}/{:?} against {cm:?}/{cs:?}; gradient \
+                 max |gpu − cpu| = {d:.2e} (max {m:.2e}), {same}/{} pixels identical",
+                std::any::type_name::<T>(),
+                v.msmse,
+                v.dssim,
+                w * h
+            );
+            assert!(
+                d <= tol * m,
+                "{w}×{h}: gradient differs by {d:e} against {m:e}"
+            );
+        }
+    }
+}
+
+/// The GPU loss against the CPU loss (src/loss): the same values and the same image
+/// gradient, for each term alone and for the paper's weighting.
+#[test]
+fn gpu_loss_matches_the_cpu_loss_f32() {
+    loss_matches::<f32>(1e-5);
+}
+
+#[test]
+fn gpu_loss_matches_the_cpu_loss_f64() {
+    loss_matches::<f64>(1e-12);
+}
+
+/// Fixed-order reductions: two evaluations give the same bits.
+#[test]
+fn gpu_loss_is_bit_identical_between_runs() {
+    let loss = GpuLoss {
+        msmse: MsMse::default(),
+        msmse_weight: 10.0,
+        dssim: DSsim::default(),
+        dssim_weight: 1.0,
+    };
+    for &(w, h) in &[(1024, 1024), (129, 70)] {
+        let p: Vec<f32> = image(w * h, 3, true);
+        let t: Vec<f32> = image(w * h, 4, true);
+        let a = loss.value_and_grad(&p, &t, w, h).unwrap();
+        let b = loss.value_and_grad(&p, &t, w, h).unwrap();
+        assert_eq!(a.0, b.0);
+        assert_eq!(a.1, b.1);
+    }
+}
+
+/// An objective without LPIPS against the render of `maps()` with other trajectories.
+fn objective_for(cfg: &SplatConfig) -> Objective {
+    let cpu = on(cfg, SplatDevice::Cpu);
+    let (target, _) = splat::forward::<f32>(&cpu, &maps(), 99).unwrap();
+    let t = candle_core::Tensor::from_vec(target, (cfg.height, cfg.width), &Device::Cpu).unwrap();
+    let loss = LossConfig {
+        lpips_weight: 0.0,
+        ..LossConfig::default()
+    };
+    Objective::new(loss, &t).unwrap()
+}
+
+/// Maps a little off the target's, so the loss and its gradient are not small.
+fn moved_maps() -> Vec<Affine2> {
+    maps()
+        .iter()
+        .map(|m| Affine2 {
+            m: m.m * 0.97,
+            b: m.b * 0.9,
+        })
+        .collect()
+}
+
+fn rel_diff(a: &[f64], b: &[f64]) -> f64 {
+    let num: f64 = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum();
+    let den: f64 = b.iter().map(|y| y * y).sum();
+    (num / den).sqrt()
+}
+
+fn breakdown_close(a: &LossBreakdown, b: &LossBreakdown, tol: f64) -> bool {
+    let c = |x: Option<f64>, y: Option<f64>| match (x, y) {
+        (Some(x), Some(y)) => (x - y).abs() <= tol * y.abs().max(1e-12),
+        (None, None) => true,
+        _ => false,
+    };
+    c(a.msmse, b.msmse)
+        && c(a.dssim, b.dssim)
+        && c(a.regulariser, b.regulariser)
+        && c(Some(a.total), Some(b.total))
+}
+
+/// One iteration fused on the GPU (image, loss and gradient never leave it) against the
+/// candle route: with the same GPU splat the image gradient is the same, so the θ gradient
+/// agrees to the loss values' summation order; against the CPU splat, to the kernels'
+/// rounding (as the splat's own gradient test). Reruns are bit-identical.
+#[test]
+fn the_fused_iteration_matches_the_candle_route() {
+    for cfg in settings() {
+        let gpu_cfg = on(&cfg, SplatDevice::Cuda);
+        let objective = objective_for(&cfg);
+        let maps = moved_maps();
+        assert_eq!(splat::gpu_route(&gpu_cfg, &objective, false), Ok(()));
+        let (bf, gf) =
+            splat::objective_and_grad(&gpu_cfg, &maps, None, false, 5, &objective).unwrap();
+        let (bg, gg) =
+            splat::objective_and_grad_candle(&gpu_cfg, &maps, None, false, 5, &objective).unwrap();
+        let (bc, gc) =
+            splat::objective_and_grad_candle(&cfg, &maps, None, false, 5, &objective).unwrap();
+        let (r_gpu, r_cpu) = (rel_diff(&gf, &gg), rel_diff(&gf, &gc));
+        eprintln!(
+            "{:?} s={} n={}: fused {:.6} | candle, GPU splat {:.6} | candle, CPU splat {:.6}; \
+             |∇fused − ∇candle| / |∇candle| = {r_gpu:.2e} (GPU splat), {r_cpu:.2e} (CPU splat); \
+             θ gradient identical to the GPU-splat candle route: {}",
+            cfg.blend,
+            cfg.supersample,
+            cfg.game.trajectories * 100,
+            bf.total,
+            bg.total,
+            bc.total,
+            gf == gg
+        );
+        assert!(breakdown_close(&bf, &bg, 1e-5), "{bf:?} against {bg:?}");
+        assert!(breakdown_close(&bf, &bc, 1e-3), "{bf:?} against {bc:?}");
+        assert!(
+            r_gpu <= 1e-5,
+            "fused against candle with the GPU splat: {r_gpu:e}"
+        );
+        assert!(
+            r_cpu <= 1e-3,
+            "fused against candle with the CPU splat: {r_cpu:e}"
+        );
+        let (bf2, gf2) =
+            splat::objective_and_grad(&gpu_cfg, &maps, None, false, 5, &objective).unwrap();
+        assert_eq!((bf, gf), (bf2, gf2), "a rerun differs");
+        // The annealing candidate's score: the render's MS-MSE, only the scalar comes back.
+        let score = splat::render_msmse(&gpu_cfg, &maps, None, false, 8, &objective)
+            .unwrap()
+            .expect("the GPU route applies");
+        let (img, _) = splat::forward::<f32>(&gpu_cfg, &maps, 8).unwrap();
+        let target: Vec<f32> = objective.target().flatten_all().unwrap().to_vec1().unwrap();
+        let want = MsMse::default()
+            .value(&img, &target, cfg.width, cfg.height)
+            .unwrap() as f64;
+        assert!(
+            (score - want).abs() <= 1e-6 * want,
+            "render_msmse {score} against {want}"
+        );
+    }
+}
+
+/// Fused iterations from several threads at once get what they get alone.
+#[test]
+fn concurrent_fused_iterations_agree_with_sequential_ones() {
+    let cfg = on(&config(Blend::Coverage, 3, 2.5, 200), SplatDevice::Cuda);
+    let objective = objective_for(&cfg);
+    let maps = moved_maps();
+    let run =
+        |seed: u64| splat::objective_and_grad(&cfg, &maps, None, false, seed, &objective).unwrap();
+    let alone: Vec<_> = (0..6).map(run).collect();
+    let together: Vec<_> = std::thread::scope(|sc| {
+        let hs: Vec<_> = (0..6).map(|s| sc.spawn(move || run(s))).collect();
+        hs.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    assert_eq!(alone, together);
+}
+
+/// The paper's setting (1024², 5×, σ 2.5, 480 k points, MS-MSE ×10 + D-SSIM): the fused
+/// iteration against the candle route with the CPU splat, the time of each route once warm,
+/// and where the fused iteration's GPU time goes.
+#[test]
+fn the_fused_iteration_at_the_paper_setting() {
+    let cfg = SplatConfig {
+        width: 1024,
+        height: 1024,
+        supersample: 5,
+        sigma: 2.5,
+        ..SplatConfig::default()
+    };
+    let gpu_cfg = on(&cfg, SplatDevice::Cuda);
+    let objective = objective_for(&cfg);
+    let maps = moved_maps();
+    let time = |c: &SplatConfig, candle: bool| {
+        let f = if candle {
+            splat::objective_and_grad_candle::<Affine2>
+        } else {
+            splat::objective_and_grad::<Affine2>
+        };
+        let _warm = f(c, &maps, None, false, 11, &objective).unwrap();
+        let t0 = std::time::Instant::now();
+        let r = f(c, &maps, None, false, 11, &objective).unwrap();
+        (r, t0.elapsed().as_secs_f64() * 1e3)
+    };
+    let ((bf, gf), tf) = time(&gpu_cfg, false);
+    let ((bg, gg), tg) = time(&gpu_cfg, true);
+    let ((bc, gc), tc) = time(&cfg, true);
+    eprintln!(
+        "paper setting: loss fused {:.6} / candle+GPU splat {:.6} / candle+CPU splat {:.6}; \
+         θ gradient rel. diff {:.2e} (GPU splat), {:.2e} (CPU splat); one iteration: fused \
+         {tf:.1} ms, candle + GPU splat {tg:.1} ms, candle + CPU splat {tc:.1} ms",
+        bf.total,
+        bg.total,
+        bc.total,
+        rel_diff(&gf, &gg),
+        rel_diff(&gf, &gc)
+    );
+    assert!(breakdown_close(&bf, &bg, 1e-5));
+    assert!(breakdown_close(&bf, &bc, 1e-3));
+    assert!(rel_diff(&gf, &gg) <= 1e-5);
+    assert!(rel_diff(&gf, &gc) <= 1e-3);
+    for (stage, ms) in splat::iteration::profile_fused(&gpu_cfg, &maps, 11, &objective).unwrap() {
+        eprintln!("  {stage:>42}: {ms:8.3} ms");
+    }
 }

@@ -1,5 +1,8 @@
 // The body of the per-iteration benchmark, shared by `splat.rs` (mimalloc, as shipped) and
 // `splat_system_alloc.rs` (glibc's allocator: the baseline for the allocator choice).
+// With `--features cuda`, the `*_cuda` groups run the splat on the GPU; there
+// `full_iteration` is the candle route (image down, loss on the CPU, gradient up) and
+// `full_iteration_fused` the fused GPU iteration, in the same run.
 // Included with `include!`; the including file defines `GROUP_SUFFIX`.
 
 use std::hint::black_box;
@@ -152,6 +155,31 @@ fn bench_splat(c: &mut Criterion) {
                 black_box(p.backward(&theta, &gm).unwrap().len())
             })
         });
+        // With the splat on the GPU, the same iteration fused (`splat::objective_and_grad`:
+        // the image, the loss and its gradient stay on the GPU, page-locked transfers) and
+        // the annealing candidate's score on the GPU, beside the candle route above.
+        #[cfg(feature = "cuda")]
+        if splat::gpu_route(&cfg, &objective, false).is_ok() {
+            g.bench_function("full_iteration_fused", |b| {
+                b.iter(|| {
+                    let m = p.decode(&theta).unwrap();
+                    let (_, grad) =
+                        splat::objective_and_grad(&cfg, &m, None, false, 3, &objective).unwrap();
+                    let gm: Vec<Affine2> =
+                        grad.chunks_exact(6).map(Affine2::from_coefficients).collect();
+                    black_box(p.backward(&theta, &gm).unwrap().len())
+                })
+            });
+            g.bench_function("anneal_candidate_fused", |b| {
+                b.iter(|| {
+                    black_box(
+                        splat::render_msmse(&cfg, &maps, None, false, 2, &objective)
+                            .unwrap()
+                            .unwrap(),
+                    )
+                })
+            });
+        }
         g.finish();
     }
 }

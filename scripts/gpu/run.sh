@@ -3,6 +3,8 @@
 # repository root with gpu-bin/ built by scripts/gpu/build.sh. Writes everything it prints
 # to OUT (default gpu-out/): the GPU, the tests' output, the benchmark.
 #   scripts/gpu/run.sh [tests|bench|all]   (default all)
+# BENCH: the criterion filter of the benchmark (default: the paper's and the demo's settings,
+# CPU and GPU groups; e.g. BENCH='iteration_(paper|demo)_cuda' for the GPU groups alone).
 set -uo pipefail
 cd "$(dirname "$0")/../.."
 what=${1:-all}
@@ -32,7 +34,7 @@ if [ "$what" = all ] || [ "$what" = tests ]; then
 fi
 if [ "$what" = all ] || [ "$what" = bench ]; then
   # The paper's setting (1024², 5×, σ 2.5, 480 k points) and the demo's, CPU and GPU groups.
-  "$bin/splat" --bench 'iteration_(paper|demo)' --warm-up-time 1 --measurement-time 3 \
+  "$bin/splat" --bench "${BENCH:-iteration_(paper|demo)}" --warm-up-time 1 --measurement-time 3 \
     2>&1 | tee "$out/bench.log"
   [ "${PIPESTATUS[0]}" = 0 ] || status=1
 fi

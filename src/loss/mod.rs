@@ -17,7 +17,9 @@
 //!
 //! [`candle_ops`] wraps any [`ImageLoss`] as a candle `CustomOp2` so that losses compose
 //! as tensors with the differentiable splatting op, and [`objective`] assembles the paper's
-//! weighted sum from a validated [`objective::LossConfig`].
+//! weighted sum from a validated [`objective::LossConfig`]. With the `cuda` feature, `cuda`
+//! computes MS-MSE and D-SSIM (value and gradient) on an NVIDIA GPU, on the splat's image
+//! where it lies (`render::splat::iteration`).
 //!
 //! ## References
 //! - Djeacoumar, Mujkanovic, Seidel, Leimkühler, *Learning Image Fractals Using Chaotic
@@ -28,6 +30,8 @@
 //!   as a Perceptual Metric*, CVPR 2018.
 
 pub mod candle_ops;
+#[cfg(feature = "cuda")]
+pub mod cuda;
 pub mod lpips;
 pub mod moments;
 pub mod msmse;

@@ -192,6 +192,11 @@ pub struct Objective {
     target: Tensor,
     lpips: Option<(Lpips, LpipsFeatures)>,
     lpips_skip_reason: Option<String>,
+    /// The target in f32 on the GPU, uploaded on first use by the fused GPU route.
+    #[cfg(feature = "cuda")]
+    device_target: std::sync::OnceLock<
+        std::result::Result<crate::render::splat::cuda::DeviceSlice<f32>, String>,
+    >,
 }
 
 impl std::fmt::Debug for Objective {
@@ -259,7 +264,54 @@ impl Objective {
             target,
             lpips,
             lpips_skip_reason,
+            #[cfg(feature = "cuda")]
+            device_target: std::sync::OnceLock::new(),
         })
+    }
+
+    /// The image terms as the GPU computes them ([`crate::loss::cuda`]), or why this
+    /// objective needs the CPU: LPIPS (a network, on the CPU through candle) or the moments
+    /// term in the loss, or a target that is not one grey plane.
+    #[cfg(feature = "cuda")]
+    pub fn gpu_loss(&self) -> std::result::Result<crate::loss::cuda::GpuLoss, String> {
+        let c = &self.config;
+        if self.lpips.is_some() {
+            return Err("the loss has an LPIPS term, which runs on the CPU".into());
+        }
+        if c.moments_weight > 0.0 {
+            return Err("the loss has a moments term, which runs on the CPU".into());
+        }
+        if self.target.dims().len() != 2 {
+            return Err(format!(
+                "the target {:?} is not one grey plane",
+                self.target.dims()
+            ));
+        }
+        let loss = crate::loss::cuda::GpuLoss {
+            msmse: c.msmse(),
+            msmse_weight: c.msmse_weight,
+            dssim: DSsim::default(),
+            dssim_weight: c.dssim_weight,
+        };
+        loss.check().map_err(|e| e.to_string())?;
+        Ok(loss)
+    }
+
+    /// The target in f32 on the GPU (uploaded once, then kept).
+    #[cfg(feature = "cuda")]
+    pub(crate) fn device_target(&self) -> Result<&crate::render::splat::cuda::DeviceSlice<f32>> {
+        self.device_target
+            .get_or_init(|| {
+                let v: Vec<f32> = self
+                    .target
+                    .to_dtype(DType::F32)
+                    .and_then(|t| t.flatten_all())
+                    .and_then(|t| t.to_vec1())
+                    .map_err(|e| e.to_string())?;
+                crate::render::splat::cuda::DeviceSlice::upload(&v).map_err(|e| e.to_string())
+            })
+            .as_ref()
+            .map_err(|e| Error::Device(e.clone()))
     }
 
     /// The validated config.

@@ -39,7 +39,9 @@
 //! [`SplatOp`] wraps the fused op as a candle `CustomOp1` (affine maps `(n, 6)`, or the
 //! parameters of any [`DiffMap2`] maps, → image `(H, W)`) so image losses compose as candle
 //! tensors; with `device = "cuda"` in its config the op's splat runs on the GPU while its
-//! tensors stay on the CPU.
+//! tensors stay on the CPU. [`iteration`] is one step of image inversion in one call —
+//! render, the objective, `∂/∂θ` — through that op, or, on the GPU with a loss the GPU
+//! computes (MS-MSE, D-SSIM), with the image and its gradient never leaving the GPU.
 //!
 //! ## References
 //! - Djeacoumar et al., *Learning Image Fractals Using Chaotic Differentiable Point Splatting*.
@@ -48,6 +50,7 @@ mod candle_op;
 #[cfg(feature = "cuda")]
 pub mod cuda;
 pub mod frame;
+pub mod iteration;
 pub mod kernel;
 pub mod trajectories;
 
@@ -55,6 +58,7 @@ use serde::{Deserialize, Serialize};
 
 pub use candle_op::{SplatOp, maps_from_tensor, maps_to_tensor, params_to_tensor};
 pub use frame::{FrameState, SplatFraming};
+pub use iteration::{gpu_route, objective_and_grad, objective_and_grad_candle, render_msmse};
 pub use kernel::{Blend, SplatGrid, SplatReal, SplatState, release_buffers};
 pub use trajectories::TrajectoryTape;
 
@@ -272,6 +276,41 @@ pub fn forward_with_probabilities<T: SplatReal>(
     probs: Option<&[f64]>,
     seed: u64,
 ) -> Result<(Vec<T>, SplatTape<T>)> {
+    let (tape, kept, frame) = trace(cfg, maps, probs, seed)?;
+    let grid = cfg.grid();
+    let (image, splat) = match cfg.device {
+        SplatDevice::Cpu => {
+            let uv: Vec<[T; 2]> = kept.iter().map(|p| frame.project(p)).collect();
+            let (image, state) = kernel::forward(&grid, uv);
+            (image, SplatStateOn::Cpu(state))
+        }
+        #[cfg(feature = "cuda")]
+        SplatDevice::Cuda => {
+            let (image, state) =
+                cuda::forward_with(&grid, kept.len(), |dst| project_into(&frame, &kept, dst))?;
+            (image, SplatStateOn::Cuda(state))
+        }
+        #[cfg(not(feature = "cuda"))]
+        SplatDevice::Cuda => unreachable!("validate() refuses cuda without the feature"),
+    };
+    Ok((
+        image,
+        SplatTape {
+            trajectories: tape,
+            frame,
+            splat,
+        },
+    ))
+}
+
+/// Steps 1–2 of the forward pass (checks, chaos game, framing): the tape, the kept points
+/// and the frame they are projected through.
+fn trace(
+    cfg: &SplatConfig,
+    maps: &[impl DiffMap2],
+    probs: Option<&[f64]>,
+    seed: u64,
+) -> Result<(TrajectoryTape, Vec<[f64; 2]>, FrameState)> {
     cfg.validate()?;
     if maps.is_empty() {
         return Err(Error::Empty("the code has no maps".into()));
@@ -288,29 +327,18 @@ pub fn forward_with_probabilities<T: SplatReal>(
         cfg.width * cfg.supersample,
         cfg.height * cfg.supersample,
     )?;
-    let uv: Vec<[T; 2]> = kept.iter().map(|p| frame.project(p)).collect();
-    let grid = cfg.grid();
-    let (image, splat) = match cfg.device {
-        SplatDevice::Cpu => {
-            let (image, state) = kernel::forward(&grid, uv);
-            (image, SplatStateOn::Cpu(state))
-        }
-        #[cfg(feature = "cuda")]
-        SplatDevice::Cuda => {
-            let (image, state) = cuda::forward(&grid, &uv)?;
-            (image, SplatStateOn::Cuda(state))
-        }
-        #[cfg(not(feature = "cuda"))]
-        SplatDevice::Cuda => unreachable!("validate() refuses cuda without the feature"),
-    };
-    Ok((
-        image,
-        SplatTape {
-            trajectories: tape,
-            frame,
-            splat,
-        },
-    ))
+    Ok((tape, kept, frame))
+}
+
+/// The kept points in supersampled pixel coordinates, written into `dst` (the GPU's
+/// page-locked upload buffer) in parallel.
+#[cfg(feature = "cuda")]
+fn project_into<T: SplatReal>(frame: &FrameState, kept: &[[f64; 2]], dst: &mut [[T; 2]]) {
+    use rayon::prelude::*;
+    dst.par_iter_mut()
+        .zip(kept.par_iter())
+        .with_min_len(4096)
+        .for_each(|(d, p)| *d = frame.project(p));
 }
 
 /// Reverse pass: `∂L/∂θ` of every map, map after map in the layout of

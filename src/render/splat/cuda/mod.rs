@@ -5,9 +5,17 @@
 //! for all three); what the GPU does is the splat —
 //! Gaussian footprints on the supersampled grid, blending, pooling — and its reverse pass to
 //! per-point gradients, which are nearly all of an iteration's time on the CPU. Per call the
-//! points go up (`8n` bytes in f32), the image comes down, and on the reverse pass `∂L/∂image`
-//! goes up and `∂L/∂(u, v)` comes down: megabytes, against a grid of `(s·W)·(s·H)` pixels
-//! that stays on the GPU (the transmittance the reverse pass needs is kept there in the tape).
+//! points go up (`8n` bytes in f32) and, on the reverse pass, `∂L/∂(u, v)` comes down, both
+//! through page-locked host buffers kept between calls; the grid of `(s·W)·(s·H)` pixels stays
+//! on the GPU (the transmittance the reverse pass needs is kept there in the tape).
+//!
+//! Two ways to use it:
+//! - [`forward`] / [`backward`]: the image comes down and `∂L/∂image` goes up (what the candle
+//!   op does, with the loss on the CPU);
+//! - [`fused`]: forward, a loss evaluated on the image where it lies (the GPU loss of
+//!   `crate::loss::cuda`), and the reverse pass from the gradient it leaves there — only the
+//!   loss's scalars and the point gradients cross the bus
+//!   (`render::splat::iteration` uses it).
 //!
 //! The kernels ([`SOURCE`], `splat.cu`) are compiled by NVRTC for the GPU found, once per
 //! process; the driver and NVRTC are loaded at run time, so the crate builds without CUDA.
@@ -16,12 +24,13 @@
 //! agree with the CPU kernel to rounding (the CPU multiplies transmittances in point order,
 //! the GPU sums their logarithms): see `tests/splat_cuda.rs`.
 
+use std::any::{Any, TypeId};
 use std::collections::HashMap;
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
 
 use cudarc::driver::{
-    CudaContext, CudaFunction, CudaSlice, CudaStream, DeviceRepr, LaunchConfig, PushKernelArg,
-    ValidAsZeroBits,
+    CudaContext, CudaFunction, CudaSlice, CudaStream, DeviceRepr, LaunchConfig, PinnedHostSlice,
+    PushKernelArg, ValidAsZeroBits,
 };
 use cudarc::nvrtc::{CompileOptions, compile_ptx_with_opts};
 
@@ -35,7 +44,7 @@ pub const SOURCE: &str = include_str!("splat.cu");
 const BLOCK: u32 = 256;
 
 /// Precisions the kernels exist in.
-pub trait GpuScalar: DeviceRepr + ValidAsZeroBits + Unpin + Copy {
+pub trait GpuScalar: DeviceRepr + ValidAsZeroBits + Unpin + Copy + Send + Sync + 'static {
     /// Suffix of this precision's kernels.
     #[doc(hidden)]
     const SUFFIX: &'static str;
@@ -54,9 +63,62 @@ struct Gpu {
     name: String,
     capability: (i32, i32),
     functions: HashMap<String, CudaFunction>,
-    /// The fixed-point accumulators, reused across calls; the lock also keeps one call's
-    /// kernels together on the stream.
-    acc: Mutex<Option<CudaSlice<i64>>>,
+    /// What calls reuse; the lock also keeps one call's work together on the stream, and
+    /// every call synchronises the stream before it lets go (so the page-locked buffers are
+    /// free when the next call takes them).
+    work: Mutex<Workspace>,
+}
+
+/// Buffers reused across calls.
+#[derive(Default)]
+struct Workspace {
+    /// The fixed-point accumulators of the supersampled grid.
+    acc: Option<CudaSlice<i64>>,
+    /// Page-locked host buffers, per precision and direction (`true`: the points going up;
+    /// `false`: their gradients coming down), each a `PinnedHostSlice<T>` grown as needed.
+    pinned: HashMap<(TypeId, bool), Box<dyn Any + Send>>,
+}
+
+impl Workspace {
+    /// The first `len` values of this precision's page-locked buffer for direction `up`.
+    fn pinned<T: GpuScalar>(
+        &mut self,
+        ctx: &Arc<CudaContext>,
+        up: bool,
+        len: usize,
+    ) -> Result<&mut [T]> {
+        let key = (TypeId::of::<T>(), up);
+        let fits = self
+            .pinned
+            .get(&key)
+            .and_then(|b| b.downcast_ref::<PinnedHostSlice<T>>())
+            .is_some_and(|p| p.len() >= len);
+        if !fits {
+            // The old buffer is freed (on this thread, whose context is current) before the
+            // larger one is taken.
+            self.pinned.remove(&key);
+            // Plain page-locked memory (not write-combined: the gradients are read on the
+            // host).
+            // SAFETY: the memory is uninitialised; it is zeroed below before any use.
+            let mut p = unsafe { ctx.alloc_pinned_with_flags::<T>(len.max(1), 0) }
+                .map_err(driver("allocating page-locked host memory"))?;
+            let ptr = p
+                .as_mut_ptr()
+                .map_err(driver("mapping page-locked host memory"))?;
+            // SAFETY: `ptr` holds `p.len()` values of a type valid as all-zero bits.
+            unsafe { std::ptr::write_bytes(ptr, 0, p.len()) };
+            self.pinned.insert(key, Box::new(p));
+        }
+        let p = self
+            .pinned
+            .get_mut(&key)
+            .and_then(|b| b.downcast_mut::<PinnedHostSlice<T>>())
+            .expect("a buffer of this type was stored above");
+        let all = p
+            .as_mut_slice()
+            .map_err(driver("mapping page-locked host memory"))?;
+        Ok(&mut all[..len])
+    }
 }
 
 static GPU: OnceLock<std::result::Result<Gpu, String>> = OnceLock::new();
@@ -69,6 +131,21 @@ fn gpu() -> Result<&'static Gpu> {
     GPU.get_or_init(init)
         .as_ref()
         .map_err(|e| device_error(e.clone()))
+}
+
+/// The stream every GPU call of the crate runs on and the GPU's compute capability (the
+/// loss kernels are compiled for it and run on the same stream).
+pub(crate) fn device() -> Result<(&'static Arc<CudaStream>, (i32, i32))> {
+    let g = gpu()?;
+    Ok((&g.stream, g.capability))
+}
+
+impl Gpu {
+    fn lock(&self) -> Result<MutexGuard<'_, Workspace>> {
+        self.work
+            .lock()
+            .map_err(|_| device_error("GPU state lock poisoned"))
+    }
 }
 
 /// `Ok` when the GPU backend is ready (driver, GPU, kernels compiled), else why not. Cheap
@@ -142,7 +219,7 @@ fn init() -> std::result::Result<Gpu, String> {
         name,
         capability,
         functions,
-        acc: Mutex::new(None),
+        work: Mutex::new(Workspace::default()),
     })
 }
 
@@ -164,13 +241,14 @@ pub fn compile_only(arch: &str) -> Result<usize> {
 
 /// Makes the GPU's context current on this thread (each call may come from another thread:
 /// the test harness, rayon, a sweep's workers).
-fn bind(st: &CudaStream) -> Result<()> {
+pub(crate) fn bind(st: &CudaStream) -> Result<()> {
     st.context()
         .bind_to_thread()
         .map_err(driver("making the GPU context current"))
 }
 
-fn driver(what: &str) -> impl Fn(cudarc::driver::DriverError) -> Error + '_ {
+/// Turns a driver error into the crate's, saying what was being done.
+pub(crate) fn driver(what: &str) -> impl Fn(cudarc::driver::DriverError) -> Error + '_ {
     move |e| device_error(format!("{what}: {e}"))
 }
 
@@ -226,9 +304,10 @@ fn per_point_launch(n: usize) -> LaunchConfig {
 }
 
 /// Events recorded between the stages of a call, when profiling.
-type Marks = Option<Vec<(&'static str, cudarc::driver::CudaEvent)>>;
+pub(crate) type Marks = Option<Vec<(&'static str, cudarc::driver::CudaEvent)>>;
 
-fn mark(st: &CudaStream, marks: &mut Marks, label: &'static str) -> Result<()> {
+/// Records an event labelled `label` (the end of a stage) when profiling.
+pub(crate) fn mark(st: &CudaStream, marks: &mut Marks, label: &'static str) -> Result<()> {
     if let Some(m) = marks {
         let e = st
             .record_event(Some(cudarc::driver::sys::CUevent_flags::CU_EVENT_DEFAULT))
@@ -236,6 +315,20 @@ fn mark(st: &CudaStream, marks: &mut Marks, label: &'static str) -> Result<()> {
         m.push((label, e));
     }
     Ok(())
+}
+
+/// The GPU time of each stage between the recorded events: `(stage, ms)`, in order.
+pub(crate) fn stage_times(marks: Marks) -> Result<Vec<(&'static str, f64)>> {
+    let m = marks.unwrap_or_default();
+    let mut out = Vec::new();
+    for w in m.windows(2) {
+        let ms = w[0]
+            .1
+            .elapsed_ms(&w[1].1)
+            .map_err(driver("reading an event"))?;
+        out.push((w[1].0, ms as f64));
+    }
+    Ok(out)
 }
 
 /// GPU time of each stage of one forward and one backward call on `uv` (milliseconds, in
@@ -246,18 +339,9 @@ pub fn profile<T: SplatReal>(
     grad_image: &[T],
 ) -> Result<Vec<(&'static str, f64)>> {
     let mut marks: Marks = Some(Vec::new());
-    let (_, state) = forward_marked(grid, uv, &mut marks)?;
+    let (_, state) = forward_marked(grid, uv.len(), |d| d.copy_from_slice(uv), &mut marks)?;
     backward_marked(grid, &state, grad_image, &mut marks)?;
-    let m = marks.expect("profiling");
-    let mut out = Vec::new();
-    for w in m.windows(2) {
-        let ms = w[0]
-            .1
-            .elapsed_ms(&w[1].1)
-            .map_err(driver("reading an event"))?;
-        out.push((w[1].0, ms as f64));
-    }
-    Ok(out)
+    stage_times(marks)
 }
 
 /// Buffers on the GPU that may be dropped on any thread: the driver frees memory in the
@@ -273,6 +357,60 @@ impl<T: GpuScalar> Drop for DeviceBuffers<T> {
     fn drop(&mut self) {
         // Nothing to report to: a failed bind surfaces at the next GPU call.
         let _ = self.stream.context().bind_to_thread();
+    }
+}
+
+/// A buffer on the GPU that may be kept anywhere and dropped on any thread (see
+/// `DeviceBuffers`): a loss's target image, kept between calls.
+pub struct DeviceSlice<T: GpuScalar> {
+    slice: CudaSlice<T>,
+    stream: Arc<CudaStream>,
+}
+
+impl<T: GpuScalar> DeviceSlice<T> {
+    /// Copies `data` to the GPU.
+    pub fn upload(data: &[T]) -> Result<Self> {
+        let g = gpu()?;
+        bind(&g.stream)?;
+        let slice = g
+            .stream
+            .clone_htod(data)
+            .map_err(driver("uploading to the GPU"))?;
+        g.stream
+            .synchronize()
+            .map_err(driver("uploading to the GPU"))?;
+        Ok(DeviceSlice {
+            slice,
+            stream: Arc::clone(&g.stream),
+        })
+    }
+
+    /// The buffer.
+    pub(crate) fn slice(&self) -> &CudaSlice<T> {
+        &self.slice
+    }
+
+    /// The number of values.
+    pub fn len(&self) -> usize {
+        self.slice.len()
+    }
+
+    /// Whether it holds no value.
+    pub fn is_empty(&self) -> bool {
+        self.slice.len() == 0
+    }
+}
+
+impl<T: GpuScalar> Drop for DeviceSlice<T> {
+    fn drop(&mut self) {
+        // As for `DeviceBuffers`.
+        let _ = self.stream.context().bind_to_thread();
+    }
+}
+
+impl<T: GpuScalar> std::fmt::Debug for DeviceSlice<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "DeviceSlice {{ len: {} }}", self.slice.len())
     }
 }
 
@@ -304,16 +442,60 @@ pub fn forward<T: SplatReal>(
     grid: &SplatGrid,
     uv: &[[T; 2]],
 ) -> Result<(Vec<T>, CudaSplatState<T>)> {
-    forward_marked(grid, uv, &mut None)
+    forward_with(grid, uv.len(), |d| d.copy_from_slice(uv))
+}
+
+/// [`forward`] for `n` points that `fill` writes straight into the page-locked buffer they
+/// are uploaded from (the framing projects into it, sparing a copy).
+pub fn forward_with<T: SplatReal>(
+    grid: &SplatGrid,
+    n: usize,
+    fill: impl FnOnce(&mut [[T; 2]]),
+) -> Result<(Vec<T>, CudaSplatState<T>)> {
+    forward_marked(grid, n, fill, &mut None)
 }
 
 fn forward_marked<T: SplatReal>(
     grid: &SplatGrid,
-    uv: &[[T; 2]],
+    n: usize,
+    fill: impl FnOnce(&mut [[T; 2]]),
     marks: &mut Marks,
 ) -> Result<(Vec<T>, CudaSplatState<T>)> {
     let g = gpu()?;
-    let n = uv.len();
+    let st = &g.stream;
+    bind(st)?;
+    let mut work = g.lock()?;
+    let out = (|| {
+        let (out, state) = splat_on_gpu(g, &mut work, grid, n, fill, marks)?;
+        let image = st
+            .clone_dtoh(&out)
+            .map_err(driver("downloading the image"))?;
+        mark(st, marks, "download the image")?;
+        Ok((image, state))
+    })();
+    synchronised(st, out)
+}
+
+/// `out`, once the stream has finished everything queued (also after an error: the
+/// page-locked buffers must be idle before the workspace is let go).
+fn synchronised<R>(st: &CudaStream, out: Result<R>) -> Result<R> {
+    let synced = st.synchronize().map_err(driver("synchronising the GPU"));
+    let out = out?;
+    synced?;
+    Ok(out)
+}
+
+/// The forward pass, its image left on the GPU. The caller holds the workspace and
+/// synchronises the stream before letting it go (the points' upload from the page-locked
+/// buffer may still be in flight).
+fn splat_on_gpu<T: SplatReal>(
+    g: &Gpu,
+    work: &mut Workspace,
+    grid: &SplatGrid,
+    n: usize,
+    fill: impl FnOnce(&mut [[T; 2]]),
+    marks: &mut Marks,
+) -> Result<(CudaSlice<T>, CudaSplatState<T>)> {
     if n >= i32::MAX as usize {
         return Err(Error::param(
             "trajectories",
@@ -323,28 +505,26 @@ fn forward_marked<T: SplatReal>(
     let (w, h, s, sub) = dims(grid)?;
     let k = Launch::new(grid);
     let st = &g.stream;
-    bind(st)?;
-    let mut acc_slot = g
-        .acc
-        .lock()
-        .map_err(|_| device_error("GPU state lock poisoned"))?;
-    if acc_slot.as_ref().is_none_or(|a| a.len() < sub) {
-        *acc_slot = None;
-        *acc_slot = Some(
+    mark(st, marks, "start")?;
+    let host = work.pinned::<T>(st.context(), true, 2 * n)?;
+    fill(host.as_chunks_mut::<2>().0);
+    // SAFETY: every value is written by the copy below before a kernel reads it.
+    let mut d_uv = unsafe { st.alloc::<T>(2 * n) }.map_err(driver("allocating the points"))?;
+    st.memcpy_htod(&*host, &mut d_uv)
+        .map_err(driver("uploading the points"))?;
+    mark(st, marks, "upload the points (page-locked)")?;
+    if work.acc.as_ref().is_none_or(|a| a.len() < sub) {
+        work.acc = None;
+        work.acc = Some(
             st.alloc_zeros::<i64>(sub)
                 .map_err(driver("allocating the splat grid"))?,
         );
     }
-    let acc = acc_slot.as_mut().expect("allocated above");
+    let acc = work.acc.as_mut().expect("allocated above");
     let mut acc_view = acc.slice_mut(0..sub);
-    mark(st, marks, "start")?;
     st.memset_zeros(&mut acc_view)
         .map_err(driver("clearing the splat grid"))?;
     mark(st, marks, "clear the grid")?;
-    let d_uv = st
-        .clone_htod(uv.as_flattened())
-        .map_err(driver("uploading the points"))?;
-    mark(st, marks, "upload the points")?;
     let f = &g.functions[&format!("splat_forward_{}", T::SUFFIX)];
     let (gw, gh) = (w * s, h * s);
     let n32 = n as i32;
@@ -390,15 +570,9 @@ fn forward_marked<T: SplatReal>(
     // SAFETY: the arguments match `splat_pool_*`; `trans` holds `sub` values when coverage.
     unsafe { b.launch(cfg) }.map_err(driver("launching splat_pool"))?;
     mark(st, marks, "allocate + transmittance + pool")?;
-    let image = st
-        .clone_dtoh(&out)
-        .map_err(driver("downloading the image"))?;
-    mark(st, marks, "download the image")?;
-    // The grid's lock is released here, after the download has synchronised the stream.
-    drop(acc_slot);
     let trans = (k.coverage == 1).then_some(trans);
     Ok((
-        image,
+        out,
         CudaSplatState {
             inner: Arc::new(DeviceBuffers {
                 uv: d_uv,
@@ -426,11 +600,40 @@ fn backward_marked<T: SplatReal>(
     marks: &mut Marks,
 ) -> Result<Vec<[f64; 2]>> {
     let g = gpu()?;
+    if state.n == 0 {
+        return Ok(Vec::new());
+    }
+    let st = &g.stream;
+    bind(st)?;
+    let mut work = g.lock()?;
+    let d_grad = st
+        .clone_htod(grad_image)
+        .map_err(driver("uploading the image gradient"))?;
+    mark(st, marks, "upload the image gradient")?;
+    backward_on_gpu(g, &mut work, grid, state, &d_grad, marks)
+}
+
+/// The reverse pass from an image gradient on the GPU; the point gradients come down
+/// through the page-locked buffer, and the stream is synchronised on return.
+fn backward_on_gpu<T: SplatReal>(
+    g: &Gpu,
+    work: &mut Workspace,
+    grid: &SplatGrid,
+    state: &CudaSplatState<T>,
+    d_grad: &CudaSlice<T>,
+    marks: &mut Marks,
+) -> Result<Vec<[f64; 2]>> {
     let (w, h, s, _) = dims(grid)?;
     let k = Launch::new(grid);
     let n = state.n;
     if n == 0 {
         return Ok(Vec::new());
+    }
+    if d_grad.len() != (w * h) as usize {
+        return Err(Error::Shape(format!(
+            "image gradient has {} values for a {w}×{h} image",
+            d_grad.len()
+        )));
     }
     let (d_uv, trans) = (&state.inner.uv, &state.inner.trans);
     if (trans.is_some()) != (k.coverage == 1) {
@@ -439,11 +642,6 @@ fn backward_marked<T: SplatReal>(
         ));
     }
     let st = &g.stream;
-    bind(st)?;
-    let d_grad = st
-        .clone_htod(grad_image)
-        .map_err(driver("uploading the image gradient"))?;
-    mark(st, marks, "upload the image gradient")?;
     let dummy;
     let trans = match trans {
         Some(t) => t,
@@ -452,16 +650,16 @@ fn backward_marked<T: SplatReal>(
             &dummy
         }
     };
-    let mut guv = st
-        .alloc_zeros::<T>(2 * n)
-        .map_err(driver("allocating the point gradients"))?;
+    // SAFETY: the kernel writes every one of the 2n values (lane 0 of each point's warp).
+    let mut guv =
+        unsafe { st.alloc::<T>(2 * n) }.map_err(driver("allocating the point gradients"))?;
     let f = &g.functions[&format!("splat_backward_{}", T::SUFFIX)];
     let n32 = n as i32;
     let mut b = st.launch_builder(f);
     b.arg(d_uv)
         .arg(&n32)
         .arg(trans)
-        .arg(&d_grad)
+        .arg(d_grad)
         .arg(&mut guv)
         .arg(&w)
         .arg(&h)
@@ -474,16 +672,60 @@ fn backward_marked<T: SplatReal>(
         .arg(&k.amax)
         .arg(&k.norm)
         .arg(&k.dscale);
-    // SAFETY: the arguments match `splat_backward_*`; `grad_image` is `w·h` values (checked
-    // by the caller), `guv` 2n.
+    // SAFETY: the arguments match `splat_backward_*`; `d_grad` is `w·h` values (checked
+    // above), `guv` 2n.
     unsafe { b.launch(per_point_launch(n)) }.map_err(driver("launching splat_backward"))?;
     mark(st, marks, "backward kernel")?;
-    let flat = st
-        .clone_dtoh(&guv)
+    let host = work.pinned::<T>(st.context(), false, 2 * n)?;
+    st.memcpy_dtoh(&guv, host)
         .map_err(driver("downloading the point gradients"))?;
-    mark(st, marks, "download the point gradients")?;
-    Ok(flat
+    st.synchronize()
+        .map_err(driver("downloading the point gradients"))?;
+    mark(st, marks, "download the point gradients (page-locked)")?;
+    Ok(host
         .chunks_exact(2)
         .map(|p| [p[0].to_f64().unwrap_or(0.0), p[1].to_f64().unwrap_or(0.0)])
         .collect())
+}
+
+/// What a loss evaluated on the GPU by [`fused`] returns: its result for the caller, and
+/// `∂L/∂image` on the GPU when the reverse pass should run.
+pub type GpuLossResult<T, R> = Result<(R, Option<CudaSlice<T>>)>;
+
+/// One iteration with the image kept on the GPU: the forward pass of the `n` points `fill`
+/// writes, `loss` on the image where it lies (on the same stream), and, when `loss` leaves
+/// `∂L/∂image` there, the reverse pass from it. Only what `loss` returns and the points'
+/// gradients come back to the host.
+pub fn fused<T: SplatReal, R>(
+    grid: &SplatGrid,
+    n: usize,
+    fill: impl FnOnce(&mut [[T; 2]]),
+    loss: impl FnOnce(&Arc<CudaStream>, &CudaSlice<T>) -> GpuLossResult<T, R>,
+) -> Result<(R, Option<Vec<[f64; 2]>>)> {
+    fused_marked(grid, n, fill, |st, image, _| loss(st, image), &mut None)
+}
+
+/// [`fused`], recording an event after each stage when `marks` is `Some` (handed to `loss`
+/// to mark its own stages).
+pub(crate) fn fused_marked<T: SplatReal, R>(
+    grid: &SplatGrid,
+    n: usize,
+    fill: impl FnOnce(&mut [[T; 2]]),
+    loss: impl FnOnce(&Arc<CudaStream>, &CudaSlice<T>, &mut Marks) -> GpuLossResult<T, R>,
+    marks: &mut Marks,
+) -> Result<(R, Option<Vec<[f64; 2]>>)> {
+    let g = gpu()?;
+    let st = &g.stream;
+    bind(st)?;
+    let mut work = g.lock()?;
+    let out = (|| {
+        let (image, state) = splat_on_gpu(g, &mut work, grid, n, fill, marks)?;
+        let (r, grad) = loss(st, &image, marks)?;
+        let guv = match grad {
+            Some(d) => Some(backward_on_gpu(g, &mut work, grid, &state, &d, marks)?),
+            None => None,
+        };
+        Ok((r, guv))
+    })();
+    synchronised(st, out)
 }

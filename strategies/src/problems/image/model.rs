@@ -13,11 +13,11 @@
 //! model) and `similitude` (direct similitudes `x ↦ s·R(φ)·x + t`, θ = (s, φ, tₓ, t_y) per
 //! map — the worked example of adding a map type: [`SimilitudeModel`] is ~60 lines).
 
-use candle_core::{DType, Device, Tensor, Var};
+use candle_core::Tensor;
 use ifslab::loss::{LossBreakdown, Objective};
-use ifslab::model::diff_map::{AffinePart, Similitude2, flat_params};
+use ifslab::model::diff_map::{AffinePart, Similitude2};
 use ifslab::model::{Affine2, Parameterisation};
-use ifslab::render::splat::{self, SplatConfig, SplatOp};
+use ifslab::render::splat::{self, SplatConfig};
 
 use ifslab::model::ParamKind;
 use serde::{Deserialize, Serialize};
@@ -51,8 +51,9 @@ pub trait ImageModel: Send + Sync + 'static {
 /// every model; each call is monomorphised for the model's map type inside.
 pub trait AnyModel: Send + Sync {
     /// The loss terms at θ and the gradient of the total with respect to θ: θ → maps → splat
-    /// op (σ and seed of this iteration) → `objective`, reverse through candle's autograd and
-    /// the model's chain rule.
+    /// (σ and seed of this iteration) → `objective` and back ([`splat::objective_and_grad`]:
+    /// fused on the GPU where it can, else the splat op through candle's autograd), then the
+    /// model's chain rule.
     fn evaluate(
         &self,
         theta: &[f64],
@@ -61,6 +62,17 @@ pub trait AnyModel: Send + Sync {
         draw: &DrawOptions,
         objective: &Objective,
     ) -> Result<(LossBreakdown, Vec<f64>)>;
+
+    /// The objective's MS-MSE of a render of θ computed on the GPU (only the scalar comes
+    /// back), or `None` where that route does not apply ([`splat::render_msmse`]).
+    fn render_msmse(
+        &self,
+        theta: &[f64],
+        splat: &SplatConfig,
+        seed: u64,
+        draw: &DrawOptions,
+        objective: &Objective,
+    ) -> Result<Option<f64>>;
 
     /// The splat render of θ (no gradient).
     fn render(
@@ -103,10 +115,6 @@ pub struct DrawOptions {
     pub clamp: bool,
 }
 
-fn tensor_err(e: candle_core::Error) -> Error {
-    Error::Core(ifslab::Error::from(e))
-}
-
 impl<M: ImageModel> AnyModel for M {
     fn evaluate(
         &self,
@@ -117,33 +125,34 @@ impl<M: ImageModel> AnyModel for M {
         objective: &Objective,
     ) -> Result<(LossBreakdown, Vec<f64>)> {
         let maps = self.decode(theta)?;
-        let var = Var::from_tensor(
-            &Tensor::new(flat_params(&maps), &Device::Cpu)
-                .and_then(|t| t.to_dtype(DType::F32))
-                .map_err(tensor_err)?,
-        )
-        .map_err(tensor_err)?;
-        let mut op = SplatOp::with_maps(splat, seed, maps.clone());
-        if let Some(p) = &draw.probs {
-            op = op.with_probabilities(p.clone());
-        }
-        let mut pred = var.as_tensor().apply_op1(op).map_err(tensor_err)?;
-        if draw.clamp {
-            pred = pred.clamp(0f32, 1f32).map_err(tensor_err)?;
-        }
-        let ev = objective.evaluate_params(&pred, &maps)?;
-        let grads = ev.image_total.backward().map_err(tensor_err)?;
-        let mut g: Vec<f64> = match grads.get(var.as_tensor()) {
-            Some(g) => g
-                .to_dtype(DType::F64)
-                .and_then(|g| g.to_vec1())
-                .map_err(tensor_err)?,
-            None => vec![0.0; ev.param_grad.len()],
-        };
-        for (a, r) in g.iter_mut().zip(&ev.param_grad) {
-            *a += r;
-        }
-        Ok((ev.breakdown, self.backward(theta, &g)?))
+        let (breakdown, g) = splat::objective_and_grad(
+            &splat,
+            &maps,
+            draw.probs.as_deref(),
+            draw.clamp,
+            seed,
+            objective,
+        )?;
+        Ok((breakdown, self.backward(theta, &g)?))
+    }
+
+    fn render_msmse(
+        &self,
+        theta: &[f64],
+        splat: &SplatConfig,
+        seed: u64,
+        draw: &DrawOptions,
+        objective: &Objective,
+    ) -> Result<Option<f64>> {
+        let maps = self.decode(theta)?;
+        Ok(splat::render_msmse(
+            splat,
+            &maps,
+            draw.probs.as_deref(),
+            draw.clamp,
+            seed,
+            objective,
+        )?)
     }
 
     fn render(

@@ -1,6 +1,7 @@
 //! The image-inversion problem: θ → maps → fused splat op → composite loss, differentiated
 //! through candle's autograd (the splat's reverse pass is the op's own) and the
-//! parameterisation's chain rule.
+//! parameterisation's chain rule — or, with the splat on the GPU and a loss the GPU computes,
+//! in one fused GPU pass (`ifslab::render::splat::iteration`).
 
 use std::borrow::Cow;
 
@@ -227,6 +228,17 @@ impl Differentiable for ImageProblem {
 
 impl Anneal for ImageProblem {
     fn anneal_cost(&self, theta: &[f64], stream: u64, frac: f64) -> Result<f64> {
+        // With the splat on the GPU, the render is scored there and only the scalar comes
+        // back; otherwise the render comes down and is scored here.
+        if let Some(v) = self.model.render_msmse(
+            theta,
+            &self.splat_at(frac),
+            mix_seed(self.seed, stream),
+            &self.draw_options(theta)?,
+            &self.objective,
+        )? {
+            return Ok(v);
+        }
         let pred = self.render_at(theta, stream, frac)?;
         Ok(self
             .anneal_mse
