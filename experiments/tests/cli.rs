@@ -467,18 +467,22 @@ fn quick_inversion_writes_every_output_and_resumes() {
         assert!(cfg.contains(want), "{want}: {cfg}");
     }
     assert!(
-        !cfg.contains("sigma_final") && !cfg.contains("em_reflections"),
+        !cfg.contains("sigma_final")
+            && !cfg.contains("em_reflections")
+            && !cfg.contains("collage_refine"),
         "{cfg}"
     );
     // `--lpips` sets the term's weight under either recipe.
     let weighted = tmp.path().join("lpips").to_string_lossy().into_owned();
     let mut weighted_args = args.to_vec();
     *weighted_args.last_mut().unwrap() = &weighted;
-    weighted_args.extend(["--lpips", "0.5"]);
+    weighted_args.extend(["--lpips", "0.5", "--collage-refine", "20"]);
     let (ok, msg) = ifslab(&weighted_args);
     assert!(ok, "{msg}");
     let cfg = std::fs::read_to_string(Path::new(&weighted).join("config.toml")).unwrap();
     assert!(cfg.contains("lpips_weight = 0.5"), "{cfg}");
+    // `--collage-refine` turns the collage start's refinement on (off in both recipes).
+    assert!(cfg.contains("collage_refine = 20"), "{cfg}");
     // A second fresh run into the same folder is refused; --resume continues (already done).
     let (ok, msg) = ifslab(&args);
     assert!(!ok && msg.contains("--resume"), "{msg}");

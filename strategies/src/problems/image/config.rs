@@ -612,6 +612,9 @@ mod tests {
         assert!(!cfg.paper);
         assert_eq!(cfg.model.init, InitKind::Collage);
         assert_eq!(cfg.model.start_size, None);
+        // The collage start's refinement is an option, off unless asked for.
+        assert_eq!(cfg.model.collage_refine, 0);
+        assert!(!cfg.to_toml().contains("collage_refine"));
         assert_eq!(cfg.strategy.name(), "cold_hybrid");
         assert_eq!(cfg.renderer.sigma_final, Some(DEFAULT_SIGMA_FINAL));
         // No LPIPS term (and so no weights file needed); every other term as the paper's.
@@ -674,9 +677,12 @@ mod tests {
         assert_eq!(paper.strategy, StrategyConfig::default());
         assert_eq!(paper.renderer.sigma_final, None);
         assert_eq!(paper.loss.lpips_weight, 2.0);
-        // Its resolved table has no σ schedule, and reads back as itself.
+        assert_eq!(paper.model.collage_refine, 0);
+        // Its resolved table has no σ schedule nor collage refinement, and reads back as
+        // itself.
         let text = paper.to_toml();
         assert!(!text.contains("sigma_final"), "{text}");
+        assert!(!text.contains("collage_refine"), "{text}");
         assert_eq!(
             InversionConfig::from_toml(&text, Path::new("c.toml")).unwrap(),
             paper

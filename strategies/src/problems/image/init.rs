@@ -106,8 +106,12 @@ pub fn collage_or_em(
     k: usize,
     seed: u64,
     reflections: bool,
+    refine: usize,
 ) -> Result<Vec<Affine2>> {
-    let search = CollageSearch::default();
+    let search = CollageSearch {
+        refine,
+        ..CollageSearch::default()
+    };
     let collage = collage_maps(target, size, k, seed, &search)?;
     let em = em_initial_maps(target, size, k, seed, reflections)?;
     let scores = start_scores(target, size, &[&em, &collage], seed, &search)?;
@@ -292,9 +296,23 @@ pub fn initial_theta(
             InitKind::Collage => match (&cfg.model.start_size, &cfg.target.image) {
                 (Some(side), Some(path)) if *side != cfg.target.size => {
                     let picture = load_framed_picture(path, *side, cfg.target.polarity)?;
-                    collage_or_em(&picture.values, *side, n, seed, cfg.model.em_reflections)?
+                    collage_or_em(
+                        &picture.values,
+                        *side,
+                        n,
+                        seed,
+                        cfg.model.em_reflections,
+                        cfg.model.collage_refine,
+                    )?
                 }
-                _ => collage_or_em(target, cfg.target.size, n, seed, cfg.model.em_reflections)?,
+                _ => collage_or_em(
+                    target,
+                    cfg.target.size,
+                    n,
+                    seed,
+                    cfg.model.em_reflections,
+                    cfg.model.collage_refine,
+                )?,
             },
             InitKind::Random if n >= 2 => sample_code(n, seed)?.maps,
             InitKind::Random => vec![Affine2::new(0.5, 0.0, 0.0, 0.5, 0.1, 0.1)],

@@ -333,6 +333,12 @@ pub struct ModelConfig {
     /// refused). Written only when set.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub start_size: Option<usize>,
+    /// Rounds of the collage start's closest-point refinement of each cover
+    /// ([`CollageSearch::refine`](crate::problems::image::collage::CollageSearch::refine);
+    /// 0: off, the default). It raises the start's score but not the fitted code's
+    /// (measured in robustness/README.md), so no recipe sets it. Written only when on.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub collage_refine: usize,
     /// How the chaos game of the differentiable renderer picks maps: `uniform` (the
     /// chaotic-splatting paper's generator) or `determinant` (∝ |det M|, no floor: Learning
     /// Fractals). Evaluation renders always use |det| with a 1% floor.
@@ -394,6 +400,7 @@ impl Default for ModelConfig {
             em_reflections: false,
             em_affine: 0,
             start_size: None,
+            collage_refine: 0,
             probabilities: MapProbabilities::Uniform,
         }
     }
