@@ -1,6 +1,8 @@
 //! The elementary functions of the flame variations: the standard library (glibc) against
-//! `model::flame::fast_math` (the FMA polynomials the renderer uses where the CPU has FMA),
-//! in the same run.
+//! `math::trig` (the polynomials the renderer uses), in the same run — `ours` as the
+//! renderer's FMA copies compile them (one call into a function built with AVX2 and FMA,
+//! the polynomial inlined in it), `ours_portable` as portable code does (each `mul_add` a
+//! call to the runtime's `fma`).
 //!
 //! Two measures per function, each over the same 4096 arguments from the ranges a render
 //! sees (angles within ±8, points within ±4 in every quadrant):
@@ -11,7 +13,8 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use ifslab::model::flame::fast_math;
+use ifslab::isa::Isa;
+use ifslab::math::trig;
 use rand::{Rng, SeedableRng};
 
 const N: usize = 4096;
@@ -30,17 +33,85 @@ fn arguments() -> (Vec<f64>, Vec<(f64, f64)>) {
     (angles, points)
 }
 
+/// The polynomials compiled with FMA, each behind a plain function (what the portable
+/// wrappers below call once the CPU is known to have the features).
+#[cfg(target_arch = "x86_64")]
+mod fma {
+    use super::trig;
+
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2")]
+    pub fn sin(x: f64) -> f64 {
+        trig::sin(x)
+    }
+
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2")]
+    pub fn cos(x: f64) -> f64 {
+        trig::cos(x)
+    }
+
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2")]
+    pub fn sin_cos(x: f64) -> (f64, f64) {
+        trig::sin_cos(x)
+    }
+
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2")]
+    pub fn atan2(y: f64, x: f64) -> f64 {
+        trig::atan2(y, x)
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+fn ours_sin(x: f64) -> f64 {
+    // SAFETY: `bench_math` runs this only after `Isa::Fma.is_available()`.
+    unsafe { fma::sin(x) }
+}
+#[cfg(target_arch = "x86_64")]
+fn ours_cos(x: f64) -> f64 {
+    // SAFETY: as above.
+    unsafe { fma::cos(x) }
+}
+#[cfg(target_arch = "x86_64")]
+fn ours_sin_cos(x: f64) -> (f64, f64) {
+    // SAFETY: as above.
+    unsafe { fma::sin_cos(x) }
+}
+#[cfg(target_arch = "x86_64")]
+fn ours_atan2(y: f64, x: f64) -> f64 {
+    // SAFETY: as above.
+    unsafe { fma::atan2(y, x) }
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+use trig::{atan2 as ours_atan2, cos as ours_cos, sin as ours_sin, sin_cos as ours_sin_cos};
+
 fn bench_math(c: &mut Criterion) {
     let (angles, points) = arguments();
-    eprintln!("FMA bodies in use: {}", fast_math::has_fma());
-    let unary: [(&str, Unary, Unary); 2] = [
-        ("sin", ("libm", f64::sin), ("ours", fast_math::sin)),
-        ("cos", ("libm", f64::cos), ("ours", fast_math::cos)),
+    if !Isa::Fma.is_available() {
+        eprintln!("this CPU has no FMA: the FMA copies cannot run; skipping");
+        return;
+    }
+    let unary: [(&str, [Unary; 3]); 2] = [
+        (
+            "sin",
+            [
+                ("libm", f64::sin),
+                ("ours", ours_sin),
+                ("ours_portable", trig::sin),
+            ],
+        ),
+        (
+            "cos",
+            [
+                ("libm", f64::cos),
+                ("ours", ours_cos),
+                ("ours_portable", trig::cos),
+            ],
+        ),
     ];
-    for (name, a, b) in unary {
+    for (name, fs) in unary {
         let mut g = c.benchmark_group(format!("math_{name}"));
         g.throughput(Throughput::Elements(N as u64));
-        for (who, f) in [a, b] {
+        for (who, f) in fs {
             g.bench_function(format!("{who}_throughput"), |bench| {
                 bench.iter(|| {
                     let mut s = 0.0;
@@ -62,7 +133,11 @@ fn bench_math(c: &mut Criterion) {
         }
         g.finish();
     }
-    let sincos: [SinCos; 2] = [("libm", f64::sin_cos), ("ours", fast_math::sin_cos)];
+    let sincos: [SinCos; 3] = [
+        ("libm", f64::sin_cos),
+        ("ours", ours_sin_cos),
+        ("ours_portable", trig::sin_cos),
+    ];
     let mut g = c.benchmark_group("math_sin_cos");
     g.throughput(Throughput::Elements(N as u64));
     for (who, f) in sincos {
@@ -88,7 +163,11 @@ fn bench_math(c: &mut Criterion) {
         });
     }
     g.finish();
-    let atan2: [Binary; 2] = [("libm", f64::atan2), ("ours", fast_math::atan2)];
+    let atan2: [Binary; 3] = [
+        ("libm", f64::atan2),
+        ("ours", ours_atan2),
+        ("ours_portable", trig::atan2),
+    ];
     let mut g = c.benchmark_group("math_atan2");
     g.throughput(Throughput::Elements(N as u64));
     for (who, f) in atan2 {

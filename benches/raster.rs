@@ -33,7 +33,7 @@ use criterion::measurement::{Measurement, ValueFormatter};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use ifslab::chaos::{Isa, LANES, MapSampler, PointSink, PointStream};
 use ifslab::model::random::sample_code;
-use ifslab::model::{Affine2, Framing, IfsCode};
+use ifslab::model::{Affine2, IfsCode, Window};
 use ifslab::render::{RenderConfig, View, render, render_with_isa};
 use rayon::prelude::*;
 
@@ -90,7 +90,7 @@ struct Setup {
     probs: Vec<f64>,
     sampler: MapSampler,
     cfg: RenderConfig,
-    window: Framing,
+    window: Window,
 }
 
 impl Setup {

@@ -10,23 +10,56 @@
 //! ```
 //!
 //! Stages: `setup` (nothing after the setup), `generation` (chaos game with tape),
-//! `backward` (splat reverse pass), `iteration` (θ → op → loss → backward → chain rule).
+//! `backward` (splat reverse pass), `iteration` (θ → op → loss → backward → chain rule);
+//! the same at the demo setting (`demo-generation`, `demo-backward`, `demo-iteration`: 96²,
+//! 4×, σ = 1, coverage, 1000 × 110 trajectories, what `ifslab demo` runs); and the other
+//! renderers' hot loops: `flame-mixed` and `flame-linear` (the flame renderer on the
+//! `m05` and `v00` fixtures of `benches/flame.rs` at 256², quality 10), `flame-learn`
+//! (one forward + reverse pass of a learnable flame, 8 generators with trigonometric
+//! variations, 100², 200 × 200 samples), `sdf` (one SDF fit iteration, Koch at depth 3,
+//! 256², cut-off 6σ, as `benches/sdf.rs`).
 //! The per-call cost is the difference between runs with N and N + k calls, divided by k
 //! (BENCHMARKS.md, "The affine path through the generic map trait").
 
 use std::hint::black_box;
 
 use candle_core::{DType, Device, Tensor, Var};
-use ifslab::loss::{LossConfig, Objective};
+use ifslab::chaos::ChaosGame;
+use ifslab::loss::{ImageLoss, LossConfig, MsMse, Objective};
+use ifslab::model::flame::VariationKind as V;
+use ifslab::model::flame::learnable::{
+    Background, FlameStack, Learn, LearnableFlame, LearnableInit,
+};
+use ifslab::model::flame::read_flames;
 use ifslab::model::param::Parameterisation;
 use ifslab::model::random::sample_code;
+use ifslab::model::segment::{SegmentMap, builtin};
 use ifslab::model::{Affine2, Svd};
+use ifslab::render::flame::{FlameRenderConfig, render_flame};
+use ifslab::render::flame_diff::{self, DiffFlameConfig, GeneratorOrder};
+use ifslab::render::sdf::{SdfRaster, SdfRenderConfig, SdfView};
 use ifslab::render::splat::{self, Blend, SplatConfig, SplatOp, maps_from_tensor, maps_to_tensor};
 
 #[global_allocator]
 static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
-const USAGE: &str = "usage: workload <setup|generation|backward|iteration> <calls>";
+const USAGE: &str = "usage: workload <stage> <calls>; stages: setup, generation, backward, \
+                     iteration, demo-generation, demo-backward, demo-iteration, flame-mixed, \
+                     flame-linear, flame-learn, sdf";
+
+const STAGES: [&str; 11] = [
+    "setup",
+    "generation",
+    "backward",
+    "iteration",
+    "demo-generation",
+    "demo-backward",
+    "demo-iteration",
+    "flame-mixed",
+    "flame-linear",
+    "flame-learn",
+    "sdf",
+];
 
 fn main() {
     // `cargo bench` passes `--bench`; everything else is ours.
@@ -43,16 +76,44 @@ fn main() {
         [] => ("setup", 0),
         _ => exit("expected a stage and a number of calls"),
     };
-    if !["setup", "generation", "backward", "iteration"].contains(&stage) {
+    if !STAGES.contains(&stage) {
         exit(&format!("unknown stage {stage}"));
     }
-    let cfg = SplatConfig {
-        width: 1024,
-        height: 1024,
-        supersample: 5,
-        sigma: 2.5,
-        blend: Blend::Coverage,
-        ..SplatConfig::default()
+    match stage {
+        "flame-mixed" | "flame-linear" => return flame(stage, calls),
+        "flame-learn" => return flame_learn(calls),
+        "sdf" => return sdf(calls),
+        _ => {}
+    }
+    let (stage, cfg) = match stage.strip_prefix("demo-") {
+        // `ifslab demo`'s splat (BENCHMARKS.md §2, "demo setting").
+        Some(s) => (
+            s,
+            SplatConfig {
+                width: 96,
+                height: 96,
+                supersample: 4,
+                sigma: 1.0,
+                blend: Blend::Coverage,
+                game: ChaosGame {
+                    trajectories: 1000,
+                    length: 110,
+                    ..ChaosGame::default()
+                },
+                ..SplatConfig::default()
+            },
+        ),
+        None => (
+            stage,
+            SplatConfig {
+                width: 1024,
+                height: 1024,
+                supersample: 5,
+                sigma: 2.5,
+                blend: Blend::Coverage,
+                ..SplatConfig::default()
+            },
+        ),
     };
     let code = sample_code(10, 3).expect("a valid sampler setting");
     let p = Svd::default();
@@ -104,11 +165,113 @@ fn main() {
             _ => 0,
         };
     }
+    report(stage, calls, start, sink);
+}
+
+fn report(stage: &str, calls: usize, start: std::time::Instant, sink: usize) {
     eprintln!(
         "{stage} × {calls}: {:.1} ms per call (wall) [{}]",
         start.elapsed().as_secs_f64() * 1e3 / calls.max(1) as f64,
         black_box(sink)
     );
+}
+
+/// The flame renderer on a fixture of `benches/flame.rs`, reframed to 256² at quality 10
+/// (655 k samples): `m05` (polar, eyefish, fisheye, disc2, waves2) or `v00` (linear).
+fn flame(stage: &str, calls: usize) {
+    let name = if stage == "flame-mixed" { "m05" } else { "v00" };
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures/flame/images")
+        .join(format!("{name}.flame"));
+    let mut f = read_flames(&path).expect("fixture").remove(0);
+    f.scale *= 256.0 / f.size[1] as f64;
+    f.size = [256, 256];
+    f.quality = 10.0;
+    let start = std::time::Instant::now();
+    let mut sink = 0usize;
+    for call in 0..calls {
+        let cfg = FlameRenderConfig {
+            seed: call as u64,
+            ..FlameRenderConfig::default()
+        };
+        sink += render_flame(&f, &cfg, None).expect("render").pixels.len();
+    }
+    report(stage, calls, start, sink);
+}
+
+/// One gradient step of a learnable flame: 8 generators (spherical, handkerchief, swirl,
+/// polar, disc, sinusoidal, julia-free trigonometric ones) at 100², 200 × 200 samples.
+fn flame_learn(calls: usize) {
+    let vars = [
+        vec![V::Spherical],
+        vec![V::Handkerchief],
+        vec![V::Swirl],
+        vec![V::Polar],
+        vec![V::Disc],
+        vec![V::Sinusoidal],
+        vec![V::Linear, V::Exponential],
+        vec![V::Linear],
+    ];
+    let layer = LearnableFlame::random(&vars, Learn::default(), &LearnableInit::default(), 7)
+        .expect("a random flame");
+    let st = FlameStack {
+        layers: vec![layer],
+        background: Background::Fixed([1.0; 3]),
+    };
+    let cfg = DiffFlameConfig {
+        trajectories: 200,
+        steps: 200,
+        ..DiffFlameConfig::default()
+    };
+    let target: Vec<f32> = (0..3 * cfg.size * cfg.size)
+        .map(|i| ((i * 7919) % 101) as f32 / 100.0)
+        .collect();
+    let start = std::time::Instant::now();
+    let mut sink = 0usize;
+    for call in 0..calls {
+        let order = GeneratorOrder::draw(&st, &cfg, call as u64);
+        let f = flame_diff::forward(&st, &cfg, &order).expect("forward");
+        let (_, gi) = flame_diff::mse(&f.image, &target).expect("mse");
+        sink += flame_diff::backward(&st, &cfg, &order, &f, &gi)
+            .expect("backward")
+            .len();
+    }
+    report("flame-learn", calls, start, sink);
+}
+
+/// One SDF fit iteration as `benches/sdf.rs` (Koch, depth 3, 256², cut-off 6σ).
+fn sdf(calls: usize) {
+    const SIDE: usize = 256;
+    const SIGMA: f64 = 1.5;
+    let koch_at = |to: [[f64; 2]; 2]| {
+        let m = SegmentMap::between([0.0, 0.0], [1.0, 0.0], to[0], to[1]).expect("a map");
+        builtin("koch")
+            .expect("koch")
+            .transformed(&m)
+            .expect("a pattern")
+    };
+    let view = SdfView::unit_square(SIDE);
+    let truth = koch_at([[0.15, 0.4], [0.85, 0.4]]);
+    let current = koch_at([[0.16, 0.41], [0.84, 0.38]]);
+    let cfg = SdfRenderConfig {
+        depth: 3,
+        cutoff: Some(6.0 * SIGMA),
+    };
+    let target = SdfRaster::render(&truth, &view, &cfg)
+        .expect("render")
+        .image(SIGMA);
+    let start = std::time::Instant::now();
+    let mut sink = 0usize;
+    for _ in 0..calls {
+        let r = SdfRaster::render(&current, &view, &cfg).expect("render");
+        let img = r.image(SIGMA);
+        let (_, g) = MsMse::new(4)
+            .value_and_grad::<f64>(&img, &target, SIDE, SIDE)
+            .expect("loss");
+        let gd = r.image_backward(SIGMA, &g);
+        sink += r.backward(&current, &gd).expect("backward").len();
+    }
+    report("sdf", calls, start, sink);
 }
 
 fn exit(msg: &str) -> ! {

@@ -7,6 +7,10 @@
 //! - [`model`]: maps (affine, similitudes), parameterisations θ ↔ maps, code files, the
 //!   classic and random codes;
 //! - [`chaos`]: deterministic, parallel chaos-game point generators;
+//! - [`isa`]: the instruction-set policy (decided once per run, hot loops compiled per
+//!   instruction set);
+//! - [`math`]: maths shared by models and renderers (fast trigonometry, dual numbers, the
+//!   float-type traits);
 //! - [`image`]: the one image type (grey, RGB or RGBA planes of `f32`; ↔ candle tensors,
 //!   PNG files);
 //! - [`render`]: the fast evaluation renderer (tens of millions of points at any zoom);
@@ -24,7 +28,9 @@ pub mod error;
 pub mod image;
 pub mod interrupt;
 pub mod io;
+pub mod isa;
 pub mod loss;
+pub mod math;
 pub mod metrics;
 pub mod model;
 pub mod progress;

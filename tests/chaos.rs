@@ -35,6 +35,23 @@ fn chaos_game_points_do_not_depend_on_thread_count() {
     // A different seed moves the points.
     let other = ChaosGame { seed: 43, ..game };
     assert_ne!(other.generate(&code.maps, &probs).unwrap().data, one.data);
+    // Both instruction sets give the same bits (the FMA copy's `mul_add`s are instructions,
+    // the portable copy's calls to the runtime's `fma`).
+    let portable = game
+        .generate_with_isa(&code.maps, &probs, Isa::Portable)
+        .unwrap();
+    assert_eq!(bits(&portable.data), bits(&one.data));
+    if Isa::Fma.is_available() {
+        let fma = game
+            .generate_with_isa(&code.maps, &probs, Isa::Fma)
+            .unwrap();
+        assert_eq!(bits(&fma.data), bits(&one.data));
+    } else {
+        assert!(
+            game.generate_with_isa(&code.maps, &probs, Isa::Fma)
+                .is_err()
+        );
+    }
 }
 
 #[test]
@@ -103,7 +120,7 @@ fn divergent_trajectories_are_reported() {
         width: 32,
         height: 32,
         points: 10_000,
-        view: ifslab::render::View::Window(ifslab::model::Framing {
+        view: ifslab::render::View::Window(ifslab::model::Window {
             min: [-1.0, -1.0],
             max: [1.0, 1.0],
         }),

@@ -7,7 +7,7 @@ use candle_core::{DType, Device, Tensor, Var};
 use ifslab::chaos::ChaosGame;
 use ifslab::model::diff_map::{VjpCheck, flat_params, vjp_check};
 use ifslab::model::{Affine2, AffinePart, DiffMap2, Map2, Similitude2};
-use ifslab::render::splat::{self, Blend, SplatConfig, SplatFraming, SplatOp, params_to_tensor};
+use ifslab::render::splat::{self, Blend, SplatConfig, SplatOp, SplatView, params_to_tensor};
 use proptest::prelude::*;
 
 /// Both products agree with central differences to `tol` relative to the derivatives' size,
@@ -118,7 +118,7 @@ fn config() -> SplatConfig {
             start_half_width: 2.0,
             seed: 0,
         },
-        framing: SplatFraming::default(),
+        framing: SplatView::default(),
         device: Default::default(),
     }
 }

@@ -90,7 +90,7 @@ proptest! {
             let total: f64 = p.iter().sum();
             code = code.with_probabilities(p.iter().map(|x| x / total).collect()).unwrap();
         }
-        code.framing = Some(ifslab::model::Framing { min: [-1.5, -2.0 / 3.0], max: [1.0 / 7.0, 2.25] });
+        code.framing = Some(ifslab::model::Window { min: [-1.5, -2.0 / 3.0], max: [1.0 / 7.0, 2.25] });
         code.meta.insert("seed".into(), seed.into());
         let back = IfsCode::from_json(&code.to_json(), Path::new("mem")).unwrap();
         prop_assert_eq!(back, code);

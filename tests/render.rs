@@ -6,7 +6,7 @@
 use ifslab::chaos::{Isa, MapSampler, Trajectory};
 use ifslab::metrics::{box_counting_dimension, iou};
 use ifslab::model::random::sample_code;
-use ifslab::model::{Affine2, Framing, IfsCode, library};
+use ifslab::model::{Affine2, IfsCode, Window, library};
 use ifslab::render::{RenderConfig, RenderMode, View, Zoom, render, render_with_isa};
 
 fn render_builtin(name: &str, cfg: &RenderConfig) -> ifslab::render::Raster {
@@ -40,7 +40,7 @@ fn sierpinski_has_box_counting_dimension_log3_over_log2() {
 #[test]
 fn fern_covers_its_known_region() {
     // Barnsley's fern lies in x ∈ [−2.182, 2.6558], y ∈ [0, 9.9983].
-    let window = Framing {
+    let window = Window {
         min: [-3.0, -0.5],
         max: [3.5, 10.5],
     };
@@ -222,12 +222,7 @@ fn random_code(seed: u64) -> (Vec<Affine2>, Vec<f64>) {
 /// `warmup` steps from `[−1, 1]²`) sets one sub-pixel of a `(w·s) × (h·s)` grid or counts
 /// on its pixel; rounds repeat until `min_hits` points landed or `max_points` were made.
 /// Returns the pixel values and the in-window count.
-fn reference(
-    maps: &[Affine2],
-    probs: &[f64],
-    cfg: &RenderConfig,
-    win: &Framing,
-) -> (Vec<f32>, u64) {
+fn reference(maps: &[Affine2], probs: &[f64], cfg: &RenderConfig, win: &Window) -> (Vec<f32>, u64) {
     let sampler = MapSampler::new(probs).unwrap();
     let t = if cfg.trajectories > 0 {
         cfg.trajectories as u64

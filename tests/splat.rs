@@ -4,9 +4,9 @@
 
 use candle_core::{DType, Device, Var};
 use ifslab::chaos::ChaosGame;
-use ifslab::model::{Affine2, Framing};
+use ifslab::model::{Affine2, Window};
 use ifslab::render::splat::{
-    self, Blend, SplatConfig, SplatFraming, SplatOp, maps_from_tensor, maps_to_tensor,
+    self, Blend, SplatConfig, SplatOp, SplatView, maps_from_tensor, maps_to_tensor,
 };
 
 fn maps() -> Vec<Affine2> {
@@ -17,7 +17,7 @@ fn maps() -> Vec<Affine2> {
     ]
 }
 
-fn config(blend: Blend, supersample: usize, framing: SplatFraming) -> SplatConfig {
+fn config(blend: Blend, supersample: usize, framing: SplatView) -> SplatConfig {
     SplatConfig {
         width: 24,
         height: 20,
@@ -97,23 +97,23 @@ fn check_gradient(cfg: &SplatConfig) {
 
 #[test]
 fn coverage_gradient_matches_finite_differences() {
-    check_gradient(&config(Blend::Coverage, 1, SplatFraming::default()));
+    check_gradient(&config(Blend::Coverage, 1, SplatView::default()));
 }
 
 #[test]
 fn coverage_gradient_with_supersampling_matches_finite_differences() {
-    check_gradient(&config(Blend::Coverage, 3, SplatFraming::default()));
+    check_gradient(&config(Blend::Coverage, 3, SplatView::default()));
 }
 
 #[test]
 fn additive_gradient_matches_finite_differences() {
-    check_gradient(&config(Blend::Additive, 1, SplatFraming::default()));
-    check_gradient(&config(Blend::Additive, 2, SplatFraming::default()));
+    check_gradient(&config(Blend::Additive, 1, SplatView::default()));
+    check_gradient(&config(Blend::Additive, 2, SplatView::default()));
 }
 
 #[test]
 fn fixed_window_gradient_matches_finite_differences() {
-    let window = SplatFraming::Window(Framing {
+    let window = SplatView::Window(Window {
         min: [-1.1, -1.0],
         max: [1.3, 1.0],
     });
@@ -122,7 +122,7 @@ fn fixed_window_gradient_matches_finite_differences() {
 
 #[test]
 fn candle_op_gives_the_same_image_and_gradient() {
-    let cfg = config(Blend::Coverage, 2, SplatFraming::default());
+    let cfg = config(Blend::Coverage, 2, SplatView::default());
     let maps = maps();
     let w = weights(cfg.width * cfg.height);
     let (img, tape) = splat::forward::<f64>(&cfg, &maps, 7).unwrap();
@@ -157,7 +157,7 @@ fn candle_op_gives_the_same_image_and_gradient() {
 
 #[test]
 fn forward_and_backward_do_not_depend_on_thread_count() {
-    let mut cfg = config(Blend::Coverage, 2, SplatFraming::default());
+    let mut cfg = config(Blend::Coverage, 2, SplatView::default());
     cfg.width = 70;
     cfg.height = 50;
     cfg.game.trajectories = 300;
@@ -182,7 +182,7 @@ fn forward_and_backward_do_not_depend_on_thread_count() {
 
 #[test]
 fn bad_inputs_are_refused() {
-    let cfg = config(Blend::Coverage, 1, SplatFraming::default());
+    let cfg = config(Blend::Coverage, 1, SplatView::default());
     let mut m = maps();
     m[1].m[(0, 0)] = f64::NAN;
     assert!(splat::forward::<f32>(&cfg, &m, 0).is_err());
@@ -218,7 +218,7 @@ fn recycled_buffers_do_not_leak_state_between_calls() {
         width: 128,
         height: 128,
         supersample: 5,
-        ..config(Blend::Coverage, 5, SplatFraming::default())
+        ..config(Blend::Coverage, 5, SplatView::default())
     };
     let other: Vec<Affine2> = maps()
         .iter()
@@ -248,7 +248,7 @@ fn map_probabilities_choose_the_maps_and_keep_gradients_exact() {
     let cfg = config(
         Blend::Additive,
         1,
-        SplatFraming::Window(Framing {
+        SplatView::Window(Window {
             min: [-1.5, -1.5],
             max: [1.5, 1.5],
         }),
@@ -315,7 +315,7 @@ fn cuda_without_the_feature_is_refused_clearly() {
     use ifslab::render::splat::SplatDevice;
     let cfg = SplatConfig {
         device: SplatDevice::Cuda,
-        ..config(Blend::Coverage, 1, SplatFraming::default())
+        ..config(Blend::Coverage, 1, SplatView::default())
     };
     let err = splat::forward::<f32>(&cfg, &maps(), 1)
         .unwrap_err()
@@ -324,4 +324,85 @@ fn cuda_without_the_feature_is_refused_clearly() {
     let parsed: SplatDevice = "cuda".parse().unwrap();
     assert_eq!(parsed, SplatDevice::Cuda);
     assert!("gpu".parse::<SplatDevice>().is_err());
+}
+
+/// The chaos game's and the backward scan's AVX2+FMA copies (an affine map's `mul_add`s one
+/// instruction each) against the portable ones (calls to the runtime's `fma`): the same tape
+/// and the same gradient, bit for bit — for affine maps, similitudes and flame transforms
+/// with trigonometric variations.
+#[test]
+fn instruction_sets_give_the_same_tape_and_gradient() {
+    use ifslab::isa::Isa;
+    use ifslab::model::flame::{SmoothXform, Variation, VariationKind as V, Xform};
+    use ifslab::model::{DiffMap2, Map2, Similitude2};
+    use ifslab::render::splat::trajectories::run_with_isa;
+
+    fn both<M: DiffMap2>(maps: &[M], what: &str) {
+        let game = ChaosGame {
+            trajectories: 40,
+            length: 90,
+            warmup: 10,
+            start_half_width: 1.5,
+            seed: 0,
+        };
+        let run = |isa: Isa| {
+            let tape = run_with_isa(&game, maps, None, 5, isa).unwrap();
+            assert_eq!(tape.isa, isa);
+            let g: Vec<[f64; 2]> = tape
+                .kept_points()
+                .iter()
+                .enumerate()
+                .map(|(i, p)| {
+                    [
+                        (i as f64 * 0.37).sin() + p[0],
+                        (i as f64 * 0.11).cos() - p[1],
+                    ]
+                })
+                .collect();
+            let grad = tape.backward(maps, &g);
+            let states: Vec<[u64; 2]> = tape.states.iter().map(|p| p.map(f64::to_bits)).collect();
+            let grad: Vec<u64> = grad.iter().map(|v| v.to_bits()).collect();
+            (states, tape.indices, grad)
+        };
+        let portable = run(Isa::Portable);
+        if !Isa::Fma.is_available() {
+            assert!(run_with_isa(&game, maps, None, 5, Isa::Fma).is_err());
+            return;
+        }
+        assert_eq!(portable, run(Isa::Fma), "{what}");
+    }
+
+    both(&maps(), "affine");
+    both(
+        &[
+            Similitude2::new(0.5, 0.1, false, [-0.4, -0.3]),
+            Similitude2::new(0.45, -0.2, true, [0.45, -0.2]),
+            Similitude2::new(0.48, 0.05, false, [0.05, 0.5]),
+        ],
+        "similitudes",
+    );
+    let xform = |coefs: [f64; 6], kinds: &[(V, f64)]| {
+        let vars = kinds.iter().map(|&(k, w)| Variation::new(k, w)).collect();
+        SmoothXform::new(Xform::new(coefs, vars)).unwrap()
+    };
+    let flames = [
+        xform(
+            [0.5, 0.1, -0.05, 0.5, -0.4, -0.3],
+            &[(V::Linear, 0.6), (V::Swirl, 0.3)],
+        ),
+        xform(
+            [0.45, -0.12, 0.08, 0.42, 0.45, -0.2],
+            &[(V::Handkerchief, 0.5)],
+        ),
+        xform(
+            [0.4, 0.05, 0.1, 0.4, 0.05, 0.5],
+            &[(V::Polar, 0.4), (V::Disc, 0.3)],
+        ),
+    ];
+    assert!(
+        flames
+            .iter()
+            .all(|f| f.apply([0.3, 0.2]).iter().all(|v| v.is_finite()))
+    );
+    both(&flames, "flame transforms");
 }

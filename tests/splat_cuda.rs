@@ -14,7 +14,7 @@ use ifslab::loss::cuda::GpuLoss;
 use ifslab::loss::{DSsim, ImageLoss, LossBreakdown, LossConfig, MsMse, Objective, Real};
 use ifslab::model::Affine2;
 use ifslab::render::splat::{
-    self, Blend, SplatConfig, SplatDevice, SplatFraming, SplatOp, SplatReal, maps_from_tensor,
+    self, Blend, SplatConfig, SplatDevice, SplatOp, SplatReal, SplatView, maps_from_tensor,
     maps_to_tensor,
 };
 
@@ -42,7 +42,7 @@ fn config(blend: Blend, supersample: usize, sigma: f64, trajectories: usize) -> 
             start_half_width: 2.0,
             seed: 0,
         },
-        framing: SplatFraming::default(),
+        framing: SplatView::default(),
         device: SplatDevice::Cpu,
     }
 }

@@ -8,6 +8,7 @@ use serde::{Deserialize, Serialize};
 use crate::chaos::rng::trajectory_rng;
 use crate::chaos::sampler::MapSampler;
 use crate::error::{Error, Result};
+use crate::isa::Isa;
 use crate::model::affine::{AffineN, Map2};
 
 /// A point farther than this from the origin has left every attractor an affine IFS can
@@ -94,8 +95,21 @@ impl ChaosGame {
     }
 
     /// Runs the game and keeps every point after warm-up, trajectory-major
-    /// (`points[i·(l−m) + k]` is step `m + k` of trajectory `i`).
+    /// (`points[i·(l−m) + k]` is step `m + k` of trajectory `i`), on the instruction set
+    /// this CPU has best.
     pub fn generate<M: Map2>(&self, maps: &[M], probs: &[f64]) -> Result<Points> {
+        self.generate_with_isa(maps, probs, Isa::detect())
+    }
+
+    /// [`ChaosGame::generate`] with the trajectories on instruction set `isa` (an error if
+    /// this CPU lacks it): the same points on every instruction set.
+    pub fn generate_with_isa<M: Map2>(
+        &self,
+        maps: &[M],
+        probs: &[f64],
+        isa: Isa,
+    ) -> Result<Points> {
+        let isa = isa.checked()?;
         self.validate()?;
         if maps.is_empty() {
             return Err(Error::Empty("the code has no maps".into()));
@@ -113,10 +127,13 @@ impl ChaosGame {
         data.par_chunks_mut(kept)
             .enumerate()
             .try_for_each(|(i, out)| {
-                let mut t = self.trajectory(maps, &sampler, i as u64);
-                t.skip_steps(self.warmup);
-                for o in out.iter_mut() {
-                    *o = t.step();
+                let t = self.trajectory(maps, &sampler, i as u64);
+                match isa {
+                    #[cfg(target_arch = "x86_64")]
+                    // SAFETY: `isa` is `Fma` only after `Isa::checked` found AVX2, FMA and
+                    // BMI1/2 on this CPU.
+                    Isa::Fma => unsafe { fill_fma(t, self.warmup, out) },
+                    _ => fill(t, self.warmup, out),
                 }
                 if !is_bounded(&out[kept - 1]) {
                     // Escaping is absorbing for the expanding codes that diverge: find where it started.
@@ -134,6 +151,24 @@ impl ChaosGame {
             per_trajectory: kept,
         })
     }
+}
+
+/// `warmup` steps of `t` dropped, then one point per entry of `out`.
+#[inline(always)]
+fn fill<M: Map2>(mut t: Trajectory<'_, M>, warmup: usize, out: &mut [[f64; 2]]) {
+    for _ in 0..warmup {
+        t.step();
+    }
+    for o in out.iter_mut() {
+        *o = t.step();
+    }
+}
+
+/// [`fill`] compiled with AVX2, FMA and BMI1/2 ([`crate::isa`]).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2")]
+fn fill_fma<M: Map2>(t: Trajectory<'_, M>, warmup: usize, out: &mut [[f64; 2]]) {
+    fill(t, warmup, out)
 }
 
 /// Points of a chaos-game run, trajectory-major.

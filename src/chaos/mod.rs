@@ -9,17 +9,18 @@
 //! [`crate::Error::Divergent`].
 //!
 //! [`PointStream`] is the form the evaluation renderer runs: trajectories stepped four at a
-//! time, each point handed to a sink, the loop compiled once per instruction set ([`Isa`])
+//! time, each point handed to a sink, the loop compiled once per instruction set ([`Isa`],
+//! [`crate::isa`])
 //! so affine maps' multiply–adds are single instructions where the CPU has FMA.
 
 mod game;
-mod isa;
 mod rng;
 mod sampler;
 mod stream;
 
+/// The instruction-set policy lives in [`crate::isa`]; re-exported here, where it started.
+pub use crate::isa::Isa;
 pub use game::{ChaosGame, DIVERGENCE_BOUND, Points, Trajectory, bbox, generate_nd, is_bounded};
-pub use isa::Isa;
 pub use rng::{mix_seed, trajectory_rng};
 pub use sampler::MapSampler;
 pub use stream::{LANES, PointSink, PointStream};

@@ -2,9 +2,9 @@
 //! kept point handed to a sink, nothing stored.
 
 use crate::chaos::game::{Trajectory, is_bounded};
-use crate::chaos::isa::Isa;
 use crate::chaos::sampler::MapSampler;
 use crate::error::{Error, Result};
+use crate::isa::Isa;
 use crate::model::affine::Map2;
 
 /// Trajectories stepped together: their chains are independent, so interleaving them hides

@@ -50,16 +50,10 @@ pub use objective::{Evaluation, LossBreakdown, LossConfig, Objective, ParamEvalu
 pub use regulariser::{ConditionTerm, Regulariser};
 pub use ssim::{DSsim, ssim, ssim_map};
 
-use std::fmt::Debug;
-
-use num_traits::Float;
-
 use crate::error::{Error, Result};
 
-/// The float types the losses run in (`f32` and `f64`).
-pub trait Real: Float + Send + Sync + Debug + 'static {}
-
-impl<T: Float + Send + Sync + Debug + 'static> Real for T {}
+/// The float types the losses run in (`f32` and `f64`): [`crate::math::Real`].
+pub use crate::math::Real;
 
 /// An image-space loss with its exact gradient with respect to the prediction.
 ///

@@ -103,14 +103,17 @@ pub const FORMAT_TAG: &str = "ifslab-code/1";
 /// An axis-aligned window of the plane: what part of it an image shows.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct Framing {
+pub struct Window {
     /// Lower-left corner (smallest x and y).
     pub min: [f64; 2],
     /// Upper-right corner (largest x and y).
     pub max: [f64; 2],
 }
 
-impl Framing {
+/// [`Window`]'s former name (a code file's `framing` is a window).
+pub type Framing = Window;
+
+impl Window {
     /// Width and height.
     pub fn size(&self) -> [f64; 2] {
         [self.max[0] - self.min[0], self.max[1] - self.min[1]]
@@ -173,7 +176,7 @@ pub struct CodeFile {
     pub probabilities: Option<Vec<f64>>,
     /// Optional window for 2-D renders.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub framing: Option<Framing>,
+    pub framing: Option<Window>,
     /// Skip the contractivity check (flame-like codes whose attractor exists anyway).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub allow_non_contractive: bool,
@@ -192,7 +195,7 @@ pub struct IfsCode {
     /// Explicit probabilities, if the code fixes them.
     pub probabilities: Option<Vec<f64>>,
     /// Window for 2-D renders, if the code fixes one.
-    pub framing: Option<Framing>,
+    pub framing: Option<Window>,
     /// Whether non-contractive maps are allowed.
     pub allow_non_contractive: bool,
     /// Free-form strategy data.

@@ -1,7 +1,8 @@
 //! Renderers: points to pictures.
 //!
-//! - [`framing`]: which part of the plane an image shows — fit to the attractor with the
-//!   papers' padding (longest side spans 75% of the frame), an explicit window, zoom views.
+//! - [`view`]: which part of the plane an image shows (its [`Window`](crate::model::Window))
+//!   — fit to the attractor with the papers' padding (longest side spans 75% of the frame),
+//!   an explicit window, zoom views.
 //! - [`raster`]: the evaluation renderer, streaming tens of millions of chaos-game points
 //!   into binary-coverage (supersampled) or density images without storing them.
 //! - [`image_io`]: 8/16-bit PNG output and grey image loading.
@@ -20,11 +21,14 @@
 
 pub mod flame;
 pub mod flame_diff;
-pub mod framing;
 pub mod image_io;
 pub mod raster;
 pub mod sdf;
 pub mod splat;
+pub mod view;
 
-pub use framing::{FIT_FILL, View, Zoom, fit_window, zoom_window};
 pub use raster::{Raster, RenderConfig, RenderMode, RenderStats, render, render_with_isa};
+/// [`view`]'s former name.
+#[doc(hidden)]
+pub use view as framing;
+pub use view::{FIT_FILL, View, Zoom, fit_window, zoom_window};

@@ -2,7 +2,7 @@
 //! whole-objective finite-difference check.
 
 use ifslab::chaos::ChaosGame;
-use ifslab::render::splat::{Blend, SplatConfig, SplatFraming};
+use ifslab::render::splat::{Blend, SplatConfig, SplatView};
 
 /// A 32 × 28 coverage splat at 2× supersampling, 24 trajectories of 100 kept points.
 pub fn small_splat() -> SplatConfig {
@@ -21,7 +21,7 @@ pub fn small_splat() -> SplatConfig {
             start_half_width: 2.0,
             seed: 0,
         },
-        framing: SplatFraming::default(),
+        framing: SplatView::default(),
         device: Default::default(),
     }
 }

@@ -8,7 +8,7 @@ use anyhow::Context;
 use ifslab::loss::lpips::LPIPS_MIN_SIDE;
 use ifslab::loss::{Lpips, default_lpips_weights_path};
 use ifslab::metrics::{EVAL_BORDER_FRACTION, ImageMetrics, border_crop_rect, paper_metrics};
-use ifslab::model::{Affine2, Framing, IfsCode};
+use ifslab::model::{Affine2, IfsCode, Window};
 use ifslab::render::image_io::{BitDepth, save_grey_png};
 use ifslab::render::{RenderConfig, View, Zoom, render};
 use ifslab_strategies::problems::image::{
@@ -455,7 +455,7 @@ pub fn interesting_point(maps: &[Affine2]) -> Option<[f64; 2]> {
 pub fn zoom_strip(
     maps: &[Affine2],
     probs: &[f64],
-    base: &Framing,
+    base: &Window,
     path: &Path,
     seed: u64,
 ) -> anyhow::Result<()> {

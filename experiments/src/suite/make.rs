@@ -7,7 +7,7 @@ use anyhow::{Context, bail};
 use ifslab::chaos::ChaosGame;
 use ifslab::chaos::{mix_seed, trajectory_rng};
 use ifslab::model::random::sample_code;
-use ifslab::model::{Affine2, Framing, IfsCode};
+use ifslab::model::{Affine2, IfsCode, Window};
 use ifslab::progress::Progress;
 use ifslab::render::image_io::{BitDepth, save_grey_png};
 use ifslab::render::{Raster, RenderConfig, View, Zoom, render};
@@ -175,7 +175,7 @@ pub struct CodeEntry {
     /// Seed of its renders.
     pub render_seed: u64,
     /// The full view's window in the code's coordinates.
-    pub window: Framing,
+    pub window: Window,
     /// The full view first, then the patches.
     pub views: Vec<ViewEntry>,
 }
@@ -374,7 +374,7 @@ pub(super) fn render_view(
     spec: &SuiteSpec,
     maps: &[Affine2],
     probs: &[f64],
-    window: &Framing,
+    window: &Window,
     factor: f64,
     center: [f64; 2],
     seed: u64,

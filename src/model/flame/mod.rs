@@ -21,7 +21,6 @@
 //! - flam3 3.1.1 (`variations.c`, `parser.c`, `flam3.c`), the reference implementation
 //!   whose formulas, defaults and conventions this module follows.
 
-pub mod fast_math;
 pub mod format;
 pub mod genome;
 pub mod learnable;
@@ -37,5 +36,10 @@ pub use genome::{FilterShape, Flame, Kernel, PaletteMode};
 pub use palette::Palette;
 pub use random::{Bounds, RandomFlameConfig, estimate_bounds, flame_from_affine, random_flame};
 pub use scalar::{Dual, FlameScalar};
+
+/// The variations' `sin`, `cos`, `sin_cos` and `atan2`, now [`crate::math::trig`] (kept at
+/// this path, where they were first).
+#[doc(hidden)]
+pub use crate::math::trig as fast_math;
 pub use variation::{Variation, VariationKind};
 pub use xform::{Applied, Coefs, IDENTITY, PreparedXform, SmoothXform, Xform};

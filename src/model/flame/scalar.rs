@@ -1,5 +1,5 @@
-//! The scalar the variation formulas are written over: `f64` for rendering, [`Dual`] for
-//! exact derivatives.
+//! The scalar the variation formulas are written over: `f64` for rendering, [`Dual`]
+//! ([`crate::math::dual`]) for exact derivatives.
 //!
 //! Every variation is one generic function of a [`FlameScalar`]. Instantiated with `f64` it is the
 //! renderer's forward pass (monomorphised, no overhead) and reproduces flam3's arithmetic
@@ -12,7 +12,8 @@
 
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
-use super::fast_math;
+pub use crate::math::Dual;
+use crate::math::trig;
 
 /// Arithmetic and the elementary functions the flam3 variations use.
 pub trait FlameScalar:
@@ -75,15 +76,15 @@ impl FlameScalar for f64 {
     }
     #[inline(always)]
     fn sin(self) -> Self {
-        fast_math::sin(self)
+        trig::sin(self)
     }
     #[inline(always)]
     fn cos(self) -> Self {
-        fast_math::cos(self)
+        trig::cos(self)
     }
     #[inline(always)]
     fn sin_cos(self) -> (Self, Self) {
-        fast_math::sin_cos(self)
+        trig::sin_cos(self)
     }
     #[inline(always)]
     fn tan(self) -> Self {
@@ -119,7 +120,7 @@ impl FlameScalar for f64 {
     }
     #[inline(always)]
     fn atan2(self, x: Self) -> Self {
-        fast_math::atan2(self, x)
+        trig::atan2(self, x)
     }
     #[inline(always)]
     fn pow(self, e: Self) -> Self {
@@ -135,175 +136,66 @@ impl FlameScalar for f64 {
     }
 }
 
-/// A value with `K` partial derivatives: `v + Σ d[k]·ε_k`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Dual<const K: usize> {
-    /// The value.
-    pub v: f64,
-    /// Its partial derivatives.
-    pub d: [f64; K],
-}
-
-impl<const K: usize> Dual<K> {
-    /// The `k`-th input variable (derivative 1 along direction `k`).
-    pub fn var(v: f64, k: usize) -> Self {
-        let mut d = [0.0; K];
-        d[k] = 1.0;
-        Dual { v, d }
-    }
-
-    /// `f(self)` given `f(v)` and `f'(v)`.
-    #[inline(always)]
-    fn chain(self, value: f64, slope: f64) -> Self {
-        let mut d = self.d;
-        for x in &mut d {
-            *x *= slope;
-        }
-        Dual { v: value, d }
-    }
-}
-
-impl<const K: usize> Add for Dual<K> {
-    type Output = Self;
-    #[inline(always)]
-    fn add(self, o: Self) -> Self {
-        let mut d = self.d;
-        for (x, y) in d.iter_mut().zip(o.d) {
-            *x += y;
-        }
-        Dual { v: self.v + o.v, d }
-    }
-}
-
-impl<const K: usize> Sub for Dual<K> {
-    type Output = Self;
-    #[inline(always)]
-    fn sub(self, o: Self) -> Self {
-        let mut d = self.d;
-        for (x, y) in d.iter_mut().zip(o.d) {
-            *x -= y;
-        }
-        Dual { v: self.v - o.v, d }
-    }
-}
-
-impl<const K: usize> Mul for Dual<K> {
-    type Output = Self;
-    #[inline(always)]
-    fn mul(self, o: Self) -> Self {
-        let mut d = [0.0; K];
-        for (k, x) in d.iter_mut().enumerate() {
-            *x = self.d[k] * o.v + self.v * o.d[k];
-        }
-        Dual { v: self.v * o.v, d }
-    }
-}
-
-impl<const K: usize> Div for Dual<K> {
-    type Output = Self;
-    #[inline(always)]
-    fn div(self, o: Self) -> Self {
-        let q = self.v / o.v;
-        let mut d = [0.0; K];
-        for (k, x) in d.iter_mut().enumerate() {
-            *x = (self.d[k] - q * o.d[k]) / o.v;
-        }
-        Dual { v: q, d }
-    }
-}
-
-impl<const K: usize> Neg for Dual<K> {
-    type Output = Self;
-    #[inline(always)]
-    fn neg(self) -> Self {
-        self.chain(-self.v, -1.0)
-    }
-}
-
-impl<const K: usize> Add<f64> for Dual<K> {
-    type Output = Self;
-    #[inline(always)]
-    fn add(self, o: f64) -> Self {
-        Dual {
-            v: self.v + o,
-            d: self.d,
-        }
-    }
-}
-
-impl<const K: usize> Sub<f64> for Dual<K> {
-    type Output = Self;
-    #[inline(always)]
-    fn sub(self, o: f64) -> Self {
-        Dual {
-            v: self.v - o,
-            d: self.d,
-        }
-    }
-}
-
-impl<const K: usize> Mul<f64> for Dual<K> {
-    type Output = Self;
-    #[inline(always)]
-    fn mul(self, o: f64) -> Self {
-        self.chain(self.v * o, o)
-    }
-}
-
-impl<const K: usize> Div<f64> for Dual<K> {
-    type Output = Self;
-    #[inline(always)]
-    fn div(self, o: f64) -> Self {
-        self.chain(self.v / o, 1.0 / o)
-    }
-}
-
 impl<const K: usize> FlameScalar for Dual<K> {
+    #[inline(always)]
     fn cst(v: f64) -> Self {
         Dual { v, d: [0.0; K] }
     }
+    #[inline(always)]
     fn v(self) -> f64 {
         self.v
     }
+    #[inline(always)]
     fn sin(self) -> Self {
-        let (s, c) = fast_math::sin_cos(self.v);
+        let (s, c) = trig::sin_cos(self.v);
         self.chain(s, c)
     }
+    #[inline(always)]
     fn cos(self) -> Self {
-        let (s, c) = fast_math::sin_cos(self.v);
+        let (s, c) = trig::sin_cos(self.v);
         self.chain(c, -s)
     }
+    #[inline(always)]
     fn sin_cos(self) -> (Self, Self) {
-        let (s, c) = fast_math::sin_cos(self.v);
+        let (s, c) = trig::sin_cos(self.v);
         (self.chain(s, c), self.chain(c, -s))
     }
+    #[inline(always)]
     fn tan(self) -> Self {
         let t = self.v.tan();
         self.chain(t, 1.0 + t * t)
     }
+    #[inline(always)]
     fn sqrt(self) -> Self {
         let r = self.v.sqrt();
         self.chain(r, 0.5 / r)
     }
+    #[inline(always)]
     fn exp(self) -> Self {
         let e = self.v.exp();
         self.chain(e, e)
     }
+    #[inline(always)]
     fn ln(self) -> Self {
         self.chain(self.v.ln(), 1.0 / self.v)
     }
+    #[inline(always)]
     fn log10(self) -> Self {
         self.chain(self.v.log10(), 1.0 / (self.v * std::f64::consts::LN_10))
     }
+    #[inline(always)]
     fn sinh(self) -> Self {
         self.chain(self.v.sinh(), self.v.cosh())
     }
+    #[inline(always)]
     fn cosh(self) -> Self {
         self.chain(self.v.cosh(), self.v.sinh())
     }
+    #[inline(always)]
     fn acos(self) -> Self {
         self.chain(self.v.acos(), -1.0 / (1.0 - self.v * self.v).sqrt())
     }
+    #[inline(always)]
     fn atan2(self, x: Self) -> Self {
         // d atan2(y, x) = (x·dy − y·dx) / (x² + y²)
         let y = self;
@@ -313,10 +205,11 @@ impl<const K: usize> FlameScalar for Dual<K> {
             *o = (x.v * y.d[k] - y.v * x.d[k]) / r2;
         }
         Dual {
-            v: fast_math::atan2(y.v, x.v),
+            v: trig::atan2(y.v, x.v),
             d,
         }
     }
+    #[inline(always)]
     fn pow(self, e: Self) -> Self {
         // d(b^e) = e·b^(e−1)·db + b^e·ln(b)·de; the ln term only where e carries a derivative.
         let p = self.v.powf(e.v);
@@ -333,9 +226,11 @@ impl<const K: usize> FlameScalar for Dual<K> {
         }
         Dual { v: p, d }
     }
+    #[inline(always)]
     fn abs(self) -> Self {
         if self.v < 0.0 { -self } else { self }
     }
+    #[inline(always)]
     fn fmod(self, m: Self) -> Self {
         let q = (self.v / m.v).trunc();
         let v = self.v % m.v;

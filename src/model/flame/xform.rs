@@ -25,10 +25,11 @@
 use rand::RngCore;
 
 use crate::error::{Error, Result};
+use crate::isa::{FmaIsa, IsaLevel, PortableIsa};
 use crate::model::affine::Map2;
 use crate::model::flame::scalar::{Dual, FlameScalar};
 use crate::model::flame::variation::{MAX_PARAMS, Variation, VariationKind, derive};
-use crate::model::flame::variations::{Pre, eval, pre_blur};
+use crate::model::flame::variations::{Pre, eval_detected, eval_on, pre_blur};
 
 /// Six affine coefficients in flam3's order `a b c d e f` (`x' = a·x + c·y + e`,
 /// `y' = b·x + d·y + f`).
@@ -148,9 +149,10 @@ impl PreparedVar {
 }
 
 /// `Σᵥ wᵥ·Vᵥ(t)` in flam3's order: the variations of a transform summed from zero at the
-/// pre-affine point `f`.
+/// pre-affine point `f`, each through instruction set `I`'s copy of the formulas.
 #[inline(always)]
-pub(crate) fn sum_variations<R: RngCore + ?Sized>(
+pub(crate) fn sum_variations<I: IsaLevel, R: RngCore + ?Sized>(
+    isa: I,
     vars: &[PreparedVar],
     coefs: &Coefs,
     f: &Pre<f64>,
@@ -158,7 +160,7 @@ pub(crate) fn sum_variations<R: RngCore + ?Sized>(
 ) -> (f64, f64) {
     let (mut x, mut y) = (0.0, 0.0);
     for v in vars {
-        let (dx, dy) = eval(v.kind, v.weight, &v.params, &v.derived, coefs, f, rng);
+        let (dx, dy) = eval_on(isa, v.kind, v.weight, &v.params, &v.derived, coefs, f, rng);
         x += dx;
         y += dy;
     }
@@ -166,9 +168,24 @@ pub(crate) fn sum_variations<R: RngCore + ?Sized>(
 }
 
 impl PreparedXform {
-    /// The transform applied to `p` (flam3's `apply_xform`, without the colour).
-    #[inline(always)]
+    /// The transform applied to `p` (flam3's `apply_xform`, without the colour), on the
+    /// instruction set this CPU has best.
+    #[inline]
     pub fn apply<R: RngCore + ?Sized>(&self, p: [f64; 2], rng: &mut R) -> Applied {
+        match FmaIsa::detect() {
+            Some(isa) => self.apply_on(isa, p, rng),
+            None => self.apply_on(PortableIsa, p, rng),
+        }
+    }
+
+    /// [`PreparedXform::apply`] on instruction set `I` (what the render loop's copies call).
+    #[inline(always)]
+    pub(crate) fn apply_on<I: IsaLevel, R: RngCore + ?Sized>(
+        &self,
+        isa: I,
+        p: [f64; 2],
+        rng: &mut R,
+    ) -> Applied {
         let (mut tx, mut ty) = affine(&self.coefs, p[0], p[1]);
         if self.pre_blur != 0.0 {
             pre_blur(self.pre_blur, &mut tx, &mut ty, rng);
@@ -178,7 +195,7 @@ impl PreparedXform {
         } else {
             Pre::without_radius(tx, ty)
         };
-        let (x, y) = sum_variations(&self.vars, &self.coefs, &f, rng);
+        let (x, y) = sum_variations(isa, &self.vars, &self.coefs, &f, rng);
         let point = match &self.post {
             Some(post) => {
                 let (a, b) = affine(post, x, y);
@@ -485,7 +502,7 @@ impl Xform {
                 }
             });
             let d = derive(v.kind(), &params);
-            let (dx, dy) = eval(v.kind(), w, &params, &d, &c9, &f9, &mut NoRng);
+            let (dx, dy) = eval_detected(v.kind(), w, &params, &d, &c9, &f9, &mut NoRng);
             for i in 0..=np {
                 grad[k + i] += through_post(dx.d[i], dy.d[i]);
             }
@@ -496,7 +513,7 @@ impl Xform {
         let f = Pre::new(tx, ty);
         let (mut s0, mut s1) = (0.0, 0.0);
         for v in &self.variations {
-            let (dx, dy) = eval(
+            let (dx, dy) = eval_detected(
                 v.kind(),
                 v.weight,
                 v.param_array(),
@@ -528,7 +545,7 @@ fn eval_const<const K: usize>(
     let w = Dual::cst(v.weight);
     let p = v.param_array().map(Dual::cst);
     let d = v.derived().map(Dual::cst);
-    eval(v.kind(), w, &p, &d, c, f, &mut NoRng)
+    eval_detected(v.kind(), w, &p, &d, c, f, &mut NoRng)
 }
 
 /// The generator handed to deterministic variations, which never draw.

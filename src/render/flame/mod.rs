@@ -71,6 +71,7 @@ use serde::{Deserialize, Serialize};
 use crate::chaos::{mix_seed, trajectory_rng};
 use crate::error::{Error, Result};
 use crate::io::write_atomic;
+use crate::isa::Isa;
 use crate::model::flame::{Flame, PreparedXform};
 use crate::progress::Progress;
 
@@ -221,12 +222,24 @@ impl FlameImage {
 }
 
 /// Renders `flame` as flam3-render would (one temporal sample), deterministically for
-/// `cfg.seed` whatever the thread count.
+/// `cfg.seed` whatever the thread count, on the instruction set this CPU has best.
 pub fn render_flame(
     flame: &Flame,
     cfg: &FlameRenderConfig,
     progress: Option<&dyn Progress>,
 ) -> Result<FlameImage> {
+    render_flame_with_isa(flame, cfg, progress, Isa::detect())
+}
+
+/// [`render_flame`] with the chaos game on instruction set `isa` (an error if this CPU
+/// lacks it): the same image on every instruction set.
+pub fn render_flame_with_isa(
+    flame: &Flame,
+    cfg: &FlameRenderConfig,
+    progress: Option<&dyn Progress>,
+    isa: Isa,
+) -> Result<FlameImage> {
+    let isa = isa.checked()?;
     let start = Instant::now();
     flame.validate()?;
     if cfg.trajectory_length == 0 {
@@ -280,6 +293,7 @@ pub fn render_flame(
         camera: &camera,
         colors: &colors,
         fuse: cfg.fuse,
+        isa,
     };
 
     let passes = flame.passes as u64;

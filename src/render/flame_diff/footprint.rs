@@ -540,7 +540,7 @@ mod tests {
     fn avx2_exponential_gives_the_portable_bits() {
         // On a CPU without AVX2+FMA only the portable half can be checked (against libm);
         // with them, the vector path must give the portable bits.
-        let avx = crate::chaos::Isa::Fma.is_available();
+        let avx = crate::isa::Isa::Fma.is_available();
         for i in 0..40_000 {
             let x: [f64; 4] = std::array::from_fn(|k| -9.0 + (i * 4 + k) as f64 * 7.3e-5);
             let portable = exp_lanes(x);

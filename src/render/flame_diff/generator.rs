@@ -9,10 +9,11 @@
 //! pre-affine coefficients themselves (waves, popcorn, rings, fan) fall back to the
 //! transform's general [`Xform::vjp_params`].
 
+use crate::isa::IsaLevel;
 use crate::model::flame::learnable::Learn;
 use crate::model::flame::scalar::{Dual, FlameScalar};
 use crate::model::flame::variation::VariationKind;
-use crate::model::flame::variations::{Pre, eval};
+use crate::model::flame::variations::{Pre, eval_on};
 use crate::model::flame::xform::{Coefs, NoRng, PreparedVar, Xform, affine, sum_variations};
 
 /// A generator prepared for sampling and differentiation.
@@ -59,9 +60,9 @@ impl Generator {
         self.linear.is_some() && self.post.is_none()
     }
 
-    /// `Σᵥ wᵥ·Vᵥ(t)` at the pre-affine point `t`.
+    /// `Σᵥ wᵥ·Vᵥ(t)` at the pre-affine point `t`, on instruction set `I`.
     #[inline(always)]
-    fn variations(&self, tx: f64, ty: f64) -> [f64; 2] {
+    fn variations<I: IsaLevel>(&self, isa: I, tx: f64, ty: f64) -> [f64; 2] {
         if let Some(w) = self.linear {
             return [w * tx, w * ty];
         }
@@ -70,15 +71,15 @@ impl Generator {
         } else {
             Pre::without_radius(tx, ty)
         };
-        let (x, y) = sum_variations(&self.vars, &self.coefs, &f, &mut NoRng);
+        let (x, y) = sum_variations(isa, &self.vars, &self.coefs, &f, &mut NoRng);
         [x, y]
     }
 
-    /// The generator applied to `s`.
+    /// The generator applied to `s`, on instruction set `I`.
     #[inline(always)]
-    pub(crate) fn apply(&self, s: [f64; 2]) -> [f64; 2] {
+    pub(crate) fn apply<I: IsaLevel>(&self, isa: I, s: [f64; 2]) -> [f64; 2] {
         let (tx, ty) = affine(&self.coefs, s[0], s[1]);
-        let v = self.variations(tx, ty);
+        let v = self.variations(isa, tx, ty);
         match &self.post {
             Some(p) => {
                 let (a, b) = affine(p, v[0], v[1]);
@@ -89,9 +90,16 @@ impl Generator {
     }
 
     /// Adds `(∂f/∂θ_g)(s)ᵀ·λ` to `grad` (the generator's θ entries, in
-    /// [`crate::model::flame::learnable`]'s order) and returns `(∂f/∂s)(s)ᵀ·λ`.
+    /// [`crate::model::flame::learnable`]'s order) and returns `(∂f/∂s)(s)ᵀ·λ`, on
+    /// instruction set `I`.
     #[inline(always)]
-    pub(crate) fn vjp(&self, s: [f64; 2], lambda: [f64; 2], grad: &mut [f64]) -> [f64; 2] {
+    pub(crate) fn vjp<I: IsaLevel>(
+        &self,
+        isa: I,
+        s: [f64; 2],
+        lambda: [f64; 2],
+        grad: &mut [f64],
+    ) -> [f64; 2] {
         if self.reads_coefs {
             return self.vjp_general(s, lambda, grad);
         }
@@ -127,7 +135,7 @@ impl Generator {
                 let w = Dual::<3>::var(var.weight, 2);
                 let p = var.params.map(<Dual<3> as FlameScalar>::cst);
                 let d = var.derived.map(<Dual<3> as FlameScalar>::cst);
-                let (ox, oy) = eval(var.kind, w, &p, &d, &cc, &f, &mut NoRng);
+                let (ox, oy) = eval_on(isa, var.kind, w, &p, &d, &cc, &f, &mut NoRng);
                 v[0] += ox.v;
                 v[1] += oy.v;
                 mu[0] += rho[0] * ox.d[0] + rho[1] * oy.d[0];
@@ -180,23 +188,37 @@ impl Generator {
 }
 
 /// The generators of a layer as the hot loops see them: the map of generator `g` and its
-/// vector–Jacobian product.
+/// vector–Jacobian product, on the instruction set of the loop's copy (`I`).
 pub(crate) trait Maps: Sync {
     /// Generator `g` applied to `s`.
-    fn apply(&self, g: usize, s: [f64; 2]) -> [f64; 2];
+    fn apply<I: IsaLevel>(&self, isa: I, g: usize, s: [f64; 2]) -> [f64; 2];
     /// [`Generator::vjp`] of generator `g`.
-    fn vjp(&self, g: usize, s: [f64; 2], lambda: [f64; 2], grad: &mut [f64]) -> [f64; 2];
+    fn vjp<I: IsaLevel>(
+        &self,
+        isa: I,
+        g: usize,
+        s: [f64; 2],
+        lambda: [f64; 2],
+        grad: &mut [f64],
+    ) -> [f64; 2];
 }
 
 impl Maps for [Generator] {
     #[inline(always)]
-    fn apply(&self, g: usize, s: [f64; 2]) -> [f64; 2] {
-        self[g].apply(s)
+    fn apply<I: IsaLevel>(&self, isa: I, g: usize, s: [f64; 2]) -> [f64; 2] {
+        self[g].apply(isa, s)
     }
 
     #[inline(always)]
-    fn vjp(&self, g: usize, s: [f64; 2], lambda: [f64; 2], grad: &mut [f64]) -> [f64; 2] {
-        self[g].vjp(s, lambda, grad)
+    fn vjp<I: IsaLevel>(
+        &self,
+        isa: I,
+        g: usize,
+        s: [f64; 2],
+        lambda: [f64; 2],
+        grad: &mut [f64],
+    ) -> [f64; 2] {
+        self[g].vjp(isa, s, lambda, grad)
     }
 }
 
@@ -231,14 +253,21 @@ impl LinearMaps {
 
 impl Maps for LinearMaps {
     #[inline(always)]
-    fn apply(&self, g: usize, s: [f64; 2]) -> [f64; 2] {
+    fn apply<I: IsaLevel>(&self, _isa: I, g: usize, s: [f64; 2]) -> [f64; 2] {
         let (c, w) = &self.gens[g];
         let (tx, ty) = affine(c, s[0], s[1]);
         [w * tx, w * ty]
     }
 
     #[inline(always)]
-    fn vjp(&self, g: usize, s: [f64; 2], lambda: [f64; 2], grad: &mut [f64]) -> [f64; 2] {
+    fn vjp<I: IsaLevel>(
+        &self,
+        _isa: I,
+        g: usize,
+        s: [f64; 2],
+        lambda: [f64; 2],
+        grad: &mut [f64],
+    ) -> [f64; 2] {
         let (c, w) = &self.gens[g];
         if self.weights {
             let (tx, ty) = affine(c, s[0], s[1]);

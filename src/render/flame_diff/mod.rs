@@ -42,8 +42,8 @@ use rand_xoshiro::Xoshiro256PlusPlus;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::chaos::Isa;
 use crate::error::{Error, Result};
+use crate::isa::{FmaIsa, Isa, IsaLevel, PortableIsa};
 use crate::model::flame::learnable::{Background, FlameStack, LearnableFlame, logistic};
 use crate::model::flame::xform::is_bad_value;
 use footprint::{footprint, to_screen};
@@ -248,8 +248,19 @@ fn splat_layer(p: &Prepared, order: &[u8], cfg: &DiffFlameConfig, isa: Isa) -> L
             (Isa::Fma, None) => unsafe {
                 splat_chunk_fma(p, p.gens.as_slice(), order, cfg, t0, t1, st)
             },
-            (_, Some(lin)) => splat_chunk::<false, _>(p, lin, order, cfg, t0, t1, st),
-            (_, None) => splat_chunk::<false, _>(p, p.gens.as_slice(), order, cfg, t0, t1, st),
+            (_, Some(lin)) => {
+                splat_chunk::<false, _, _>(PortableIsa, p, lin, order, cfg, t0, t1, st)
+            }
+            (_, None) => splat_chunk::<false, _, _>(
+                PortableIsa,
+                p,
+                p.gens.as_slice(),
+                order,
+                cfg,
+                t0,
+                t1,
+                st,
+            ),
         })
         .collect();
     let mut it = parts.into_iter();
@@ -288,12 +299,17 @@ fn splat_chunk_fma<M: Maps + ?Sized>(
     t1: usize,
     states: &mut [[f64; 2]],
 ) -> Vec<[f64; 5]> {
-    splat_chunk::<true, M>(p, maps, order, cfg, t0, t1, states)
+    // SAFETY: this copy runs only where `Isa::checked` found AVX2, FMA and BMI1/2.
+    let isa = unsafe { FmaIsa::new_unchecked() };
+    splat_chunk::<true, M, _>(isa, p, maps, order, cfg, t0, t1, states)
 }
 
-/// Trajectories `t0..t1` splatted into a buffer of their own.
+/// Trajectories `t0..t1` splatted into a buffer of their own (generators applied on
+/// instruction set `I`).
 #[inline(always)]
-fn splat_chunk<const AVX: bool, M: Maps + ?Sized>(
+#[allow(clippy::too_many_arguments)]
+fn splat_chunk<const AVX: bool, M: Maps + ?Sized, I: IsaLevel>(
+    isa: I,
     p: &Prepared,
     maps: &M,
     order: &[u8],
@@ -306,11 +322,11 @@ fn splat_chunk<const AVX: bool, M: Maps + ?Sized>(
     let mut buf = vec![[0.0f64; 5]; npix];
     let mut t = t0;
     while t + SPLAT_LANES <= t1 {
-        splat_group::<AVX, M, SPLAT_LANES>(p, maps, order, cfg, t, t0, states, &mut buf);
+        splat_group::<AVX, M, I, SPLAT_LANES>(isa, p, maps, order, cfg, t, t0, states, &mut buf);
         t += SPLAT_LANES;
     }
     while t < t1 {
-        splat_group::<AVX, M, 1>(p, maps, order, cfg, t, t0, states, &mut buf);
+        splat_group::<AVX, M, I, 1>(isa, p, maps, order, cfg, t, t0, states, &mut buf);
         t += 1;
     }
     buf
@@ -324,7 +340,8 @@ const SPLAT_LANES: usize = 8;
 /// side by side.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn splat_group<const AVX: bool, M: Maps + ?Sized, const L: usize>(
+fn splat_group<const AVX: bool, M: Maps + ?Sized, I: IsaLevel, const L: usize>(
+    isa: I,
     p: &Prepared,
     maps: &M,
     order: &[u8],
@@ -344,7 +361,7 @@ fn splat_group<const AVX: bool, M: Maps + ?Sized, const L: usize>(
     for j in 1..steps {
         for l in 0..L {
             let gi = order[(t + l) * steps + j] as usize;
-            let mut x = maps.apply(gi, s[l]);
+            let mut x = maps.apply(isa, gi, s[l]);
             let bad = is_bad_value(x[0]) || is_bad_value(x[1]);
             if bad {
                 x = [0.0, 0.0];
@@ -653,8 +670,10 @@ fn backward_layer(
             #[cfg(target_arch = "x86_64")]
             // SAFETY: as above.
             (Isa::Fma, None) => unsafe { backward_chunk_fma(&pass, p.gens.as_slice(), t0, t1) },
-            (_, Some(lin)) => backward_chunk::<false, _>(&pass, lin, t0, t1),
-            (_, None) => backward_chunk::<false, _>(&pass, p.gens.as_slice(), t0, t1),
+            (_, Some(lin)) => backward_chunk::<false, _, _>(PortableIsa, &pass, lin, t0, t1),
+            (_, None) => {
+                backward_chunk::<false, _, _>(PortableIsa, &pass, p.gens.as_slice(), t0, t1)
+            }
         })
         .collect();
     let mut it = parts.into_iter();
@@ -699,12 +718,15 @@ fn backward_chunk_fma<M: Maps + ?Sized>(
     t0: usize,
     t1: usize,
 ) -> Vec<f64> {
-    backward_chunk::<true, M>(pass, maps, t0, t1)
+    // SAFETY: this copy runs only where `Isa::checked` found AVX2, FMA and BMI1/2.
+    let isa = unsafe { FmaIsa::new_unchecked() };
+    backward_chunk::<true, M, _>(isa, pass, maps, t0, t1)
 }
 
 /// The θ gradient of trajectories `t0..t1`.
 #[inline(always)]
-fn backward_chunk<const AVX: bool, M: Maps + ?Sized>(
+fn backward_chunk<const AVX: bool, M: Maps + ?Sized, I: IsaLevel>(
+    isa: I,
     pass: &LayerPass<'_>,
     maps: &M,
     t0: usize,
@@ -724,7 +746,7 @@ fn backward_chunk<const AVX: bool, M: Maps + ?Sized>(
     // The trajectory's tape, one cache line per step.
     let mut tape = vec![Step::default(); cfg.steps];
     for t in t0..t1 {
-        backward_trajectory::<AVX, M>(pass, maps, t, &mut tape, &mut acc);
+        backward_trajectory::<AVX, M, I>(isa, pass, maps, t, &mut tape, &mut acc);
     }
     let mut grad = acc.grad;
     grad[lay.kappa_at] += acc.kappa * (p.kappa - 1.0);
@@ -758,7 +780,8 @@ struct Sums {
 /// forward pass, measured slower here: 37 ms per iteration with one, 39 with two, 41 with
 /// four.)
 #[inline(always)]
-fn backward_trajectory<const AVX: bool, M: Maps + ?Sized>(
+fn backward_trajectory<const AVX: bool, M: Maps + ?Sized, I: IsaLevel>(
+    isa: I,
     pass: &LayerPass<'_>,
     maps: &M,
     t: usize,
@@ -794,7 +817,7 @@ fn backward_trajectory<const AVX: bool, M: Maps + ?Sized>(
                 s[0].is_nan()
             }
             None => {
-                s = maps.apply(gi, s);
+                s = maps.apply(isa, gi, s);
                 is_bad_value(s[0]) || is_bad_value(s[1])
             }
         };
@@ -865,6 +888,6 @@ fn backward_trajectory<const AVX: bool, M: Maps + ?Sized>(
             continue;
         }
         let (a, b) = acc.ranges[gi];
-        lam = maps.vjp(gi, prev.s, lam, &mut acc.grad[a..b]);
+        lam = maps.vjp(isa, gi, prev.s, lam, &mut acc.grad[a..b]);
     }
 }

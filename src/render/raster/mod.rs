@@ -35,12 +35,13 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::budget::{MemoryEstimate, check_memory, check_rate};
-use crate::chaos::{Isa, LANES, MapSampler, PointSink, PointStream};
+use crate::chaos::{LANES, MapSampler, PointSink, PointStream};
 use crate::error::{Error, Result};
+use crate::isa::Isa;
 use crate::model::affine::Map2;
-use crate::model::code::Framing;
+use crate::model::code::Window;
 use crate::progress::Progress;
-use crate::render::framing::{FIT_FILL, View, Zoom, fit_window, pilot_bbox, zoom_window};
+use crate::render::view::{FIT_FILL, View, Zoom, fit_window, pilot_bbox, zoom_window};
 
 /// What each pixel measures.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -179,7 +180,7 @@ impl RenderConfig {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RenderStats {
     /// The window the image shows.
-    pub window: Framing,
+    pub window: Window,
     /// Points generated (after warm-up) in all rounds.
     pub points_generated: u64,
     /// Points that landed in the window.
@@ -224,7 +225,7 @@ pub(crate) struct PixelMap {
 }
 
 impl PixelMap {
-    fn new(win: &Framing, width: u32, height: u32, s: u32, row: u64) -> Self {
+    fn new(win: &Window, width: u32, height: u32, s: u32, row: u64) -> Self {
         let size = win.size();
         let sf = s as f64;
         PixelMap {
@@ -419,7 +420,7 @@ type RoundCounts = (u64, u64, u32, bool);
 fn run_rounds<M: Map2, A: Accumulator, F: Fn() -> A + Sync>(
     stream: &PointStream<'_, M>,
     cfg: &RenderConfig,
-    window: &Framing,
+    window: &Window,
     progress: Option<&dyn Progress>,
     start: Instant,
     make: F,

@@ -10,40 +10,45 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
-use crate::model::code::Framing;
-use crate::render::framing::FIT_FILL;
+use crate::model::code::Window;
+use crate::render::view::FIT_FILL;
 
 /// Points per chunk in reductions; fixed so sums have a fixed order.
 const CHUNK: usize = 4096;
 
-/// How the fused op frames its points.
+/// The fused op's view: which window its points are framed in — fitted to them with an
+/// adjustable fill (differentiably), or fixed. (The evaluation renderer's is
+/// [`View`](crate::render::View), whose fit always uses [`FIT_FILL`].)
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
-pub enum SplatFraming {
+pub enum SplatView {
     /// Fit the bounding box with its limiting side spanning `fill` of the frame.
     Fit {
         /// Fraction of the frame (the papers use 0.75).
         fill: f64,
     },
     /// A fixed window of the plane.
-    Window(Framing),
+    Window(Window),
 }
 
-impl Default for SplatFraming {
+/// [`SplatView`]'s former name.
+pub type SplatFraming = SplatView;
+
+impl Default for SplatView {
     fn default() -> Self {
-        SplatFraming::Fit { fill: FIT_FILL }
+        SplatView::Fit { fill: FIT_FILL }
     }
 }
 
-impl SplatFraming {
-    /// Checks the framing's numbers.
+impl SplatView {
+    /// Checks the view's numbers.
     pub fn validate(&self) -> Result<()> {
         match self {
-            SplatFraming::Fit { fill } if !(*fill > 0.0 && *fill <= 1.0) => Err(Error::param(
+            SplatView::Fit { fill } if !(*fill > 0.0 && *fill <= 1.0) => Err(Error::param(
                 "fill",
                 format!("must lie in (0, 1], got {fill}"),
             )),
-            SplatFraming::Window(w) => w.validate(),
+            SplatView::Window(w) => w.validate(),
             _ => Ok(()),
         }
     }
@@ -65,14 +70,14 @@ pub struct FrameState {
 
 /// Resolves the framing for `points` on a `grid_w × grid_h` supersampled grid.
 pub fn fit(
-    framing: &SplatFraming,
+    framing: &SplatView,
     points: &[[f64; 2]],
     grid_w: usize,
     grid_h: usize,
 ) -> Result<FrameState> {
     let grid = [grid_w as f64, grid_h as f64];
     match framing {
-        SplatFraming::Window(w) => {
+        SplatView::Window(w) => {
             let size = w.size();
             // Keep pixels square: the window's aspect is used as is when it matches.
             let scale = (grid[0] / size[0]).min(grid[1] / size[1]);
@@ -83,7 +88,7 @@ pub fn fit(
                 fit: None,
             })
         }
-        SplatFraming::Fit { fill } => {
+        SplatView::Fit { fill } => {
             if points.is_empty() {
                 return Err(Error::Empty("no points to frame".into()));
             }

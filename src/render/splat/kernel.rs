@@ -5,6 +5,9 @@ use num_traits::Float;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use crate::isa::Isa;
+use crate::math::Real;
+
 /// Tiles span about this many supersampled pixels per side (at least [`MIN_TILE`] output
 /// pixels): large enough that few footprints straddle two tiles (each straddling point is
 /// splatted once per tile it touches), small enough to spread the work over threads.
@@ -57,6 +60,8 @@ pub struct SplatState<T: SplatReal> {
     /// Tiles with at least one entry, in order; `trans` holds one buffer per used tile.
     used: Vec<usize>,
     trans: Pooled<T>,
+    /// The instruction set the forward pass ran on (the reverse pass runs on it too).
+    isa: Isa,
 }
 
 impl<T: SplatReal> SplatState<T> {
@@ -317,7 +322,7 @@ impl Geometry {
 /// Splats one tile's points into its buffer (transmittance or density), then pools it.
 #[inline(always)]
 fn tile_forward<T: SplatReal, const COVERAGE: bool>(
-    simd: bool,
+    isa: Isa,
     g: &Geometry,
     k: &Consts<T>,
     tg: &TileGeom,
@@ -342,7 +347,7 @@ fn tile_forward<T: SplatReal, const COVERAGE: bool>(
         weights(p[1], y0, y1, k.inv2s2, k.q, &mut wy, &mut dy);
         let wx = &wx[..npad];
         let base = (y0 - tg.oy) * stride + (x0 - tg.ox);
-        T::footprint_forward::<COVERAGE>(simd, buf, base, stride, wx, &wy[..=y1 - y0], k);
+        T::footprint_forward::<COVERAGE>(isa, buf, base, stride, wx, &wy[..=y1 - y0], k);
     }
     let mut out = vec![zero; tg.pw * tg.ph];
     for py in 0..tg.ph {
@@ -364,7 +369,7 @@ fn tile_forward<T: SplatReal, const COVERAGE: bool>(
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn tile_backward<T: SplatReal, const COVERAGE: bool>(
-    simd: bool,
+    isa: Isa,
     g: &Geometry,
     k: &Consts<T>,
     tg: &TileGeom,
@@ -407,7 +412,7 @@ fn tile_backward<T: SplatReal, const COVERAGE: bool>(
         let npad = weights(p[0], x0, x1, k.inv2s2, k.q, &mut wx, &mut dx);
         weights(p[1], y0, y1, k.inv2s2, k.q, &mut wy, &mut dy);
         let (gu, gv) = T::footprint_backward::<COVERAGE>(
-            simd,
+            isa,
             k,
             &h,
             (y0 - tg.oy) * stride + (x0 - tg.ox),
@@ -479,19 +484,7 @@ impl<T: SplatReal> Drop for Pooled<T> {
     }
 }
 
-#[cfg(feature = "cuda")]
-pub use super::cuda::GpuScalar;
-
-/// The precisions the GPU kernels exist in (with the `cuda` feature, what the driver needs of
-/// them; without it, nothing).
-#[cfg(not(feature = "cuda"))]
-pub trait GpuScalar {}
-
-#[cfg(not(feature = "cuda"))]
-impl GpuScalar for f32 {}
-
-#[cfg(not(feature = "cuda"))]
-impl GpuScalar for f64 {}
+pub use crate::math::GpuScalar;
 
 /// Frees the recycled splat buffers of both precisions (they are otherwise kept for the next
 /// call).
@@ -509,7 +502,7 @@ pub fn release_buffers() {
 /// also has AVX2 versions doing the same operations lane by lane in the same order (no fused
 /// multiply–adds, the same fixed-order lane reduction), so results are bit-identical
 /// whichever runs.
-pub trait SplatReal: Float + GpuScalar + Send + Sync + std::fmt::Debug + 'static {
+pub trait SplatReal: Real + GpuScalar {
     /// This precision's pool of recycled tile buffers (see [`Pooled`]).
     #[doc(hidden)]
     fn buffer_pool() -> &'static std::sync::Mutex<Vec<Vec<Self>>>;
@@ -518,7 +511,7 @@ pub trait SplatReal: Float + GpuScalar + Send + Sync + std::fmt::Debug + 'static
     #[doc(hidden)]
     #[inline(always)]
     fn footprint_forward<const COVERAGE: bool>(
-        _simd: bool,
+        _isa: Isa,
         buf: &mut [Self],
         base: usize,
         stride: usize,
@@ -537,7 +530,7 @@ pub trait SplatReal: Float + GpuScalar + Send + Sync + std::fmt::Debug + 'static
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     fn footprint_backward<const COVERAGE: bool>(
-        _simd: bool,
+        _isa: Isa,
         k: &Consts<Self>,
         h: &[Self],
         base: usize,
@@ -566,7 +559,7 @@ impl SplatReal for f32 {
 
     #[inline(always)]
     fn footprint_forward<const COVERAGE: bool>(
-        simd: bool,
+        isa: Isa,
         buf: &mut [f32],
         base: usize,
         stride: usize,
@@ -575,11 +568,12 @@ impl SplatReal for f32 {
         k: &Consts<f32>,
     ) {
         #[cfg(target_arch = "x86_64")]
-        if simd {
-            // SAFETY: `simd` is only set when the CPU reports AVX2; bounds are checked inside.
+        if isa == Isa::Fma {
+            // SAFETY: `isa` is `Fma` only when `Isa::detect` or `Isa::checked` found AVX2 (and
+            // FMA, BMI1/2) on this CPU; bounds are checked inside.
             return unsafe { avx2::footprint_forward::<COVERAGE>(buf, base, stride, wx, wy, k) };
         }
-        let _ = simd;
+        let _ = isa;
         for (ry, &wyr) in wy.iter().enumerate() {
             let row = base + ry * stride;
             row_forward_generic::<f32, COVERAGE>(&mut buf[row..row + wx.len()], wx, wyr, k);
@@ -589,7 +583,7 @@ impl SplatReal for f32 {
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     fn footprint_backward<const COVERAGE: bool>(
-        simd: bool,
+        isa: Isa,
         k: &Consts<f32>,
         h: &[f32],
         base: usize,
@@ -600,13 +594,13 @@ impl SplatReal for f32 {
         dy: &[f32],
     ) -> (f32, f32) {
         #[cfg(target_arch = "x86_64")]
-        if simd {
+        if isa == Isa::Fma {
             // SAFETY: as above.
             return unsafe {
                 avx2::footprint_backward::<COVERAGE>(k, h, base, stride, wx, dx, wy, dy)
             };
         }
-        let _ = simd;
+        let _ = isa;
         footprint_backward_generic::<f32, COVERAGE>(k, h, base, stride, wx, dx, wy, dy)
     }
 }
@@ -799,19 +793,26 @@ mod avx2 {
     }
 }
 
-fn has_avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx2")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
+/// Forward: pooled image (row-major `height × width`) and the state for the reverse pass,
+/// on the instruction set this CPU has best ([`Isa::detect`]).
+pub fn forward<T: SplatReal>(grid: &SplatGrid, uv: Vec<[T; 2]>) -> (Vec<T>, SplatState<T>) {
+    forward_with_isa(grid, uv, Isa::detect())
 }
 
-/// Forward: pooled image (row-major `height × width`) and the state for the reverse pass.
-pub fn forward<T: SplatReal>(grid: &SplatGrid, uv: Vec<[T; 2]>) -> (Vec<T>, SplatState<T>) {
+/// [`forward`] on instruction set `isa` (the reverse pass runs on the same one): with
+/// [`Isa::Fma`], `f32` footprints are blended eight lanes at a time with AVX2, the same
+/// operations in the same order as the portable loops (the same bits). `isa` must be
+/// available on this CPU ([`Isa::checked`]); an unavailable one runs the portable loops.
+pub fn forward_with_isa<T: SplatReal>(
+    grid: &SplatGrid,
+    uv: Vec<[T; 2]>,
+    isa: Isa,
+) -> (Vec<T>, SplatState<T>) {
+    let isa = if isa.is_available() {
+        isa
+    } else {
+        Isa::Portable
+    };
     let g = grid.geometry();
     let (tile_start, entries, coords) = bin(&uv, &g);
     let s = grid.supersample;
@@ -819,7 +820,6 @@ pub fn forward<T: SplatReal>(grid: &SplatGrid, uv: Vec<[T; 2]>) -> (Vec<T>, Spla
     let coverage = grid.blend == Blend::Coverage;
     let k = Consts::<T>::new(grid, &g);
     let n_tiles = g.tiles_x * g.tiles_y;
-    let simd = has_avx2();
     // Only tiles some footprint touches get a buffer (the others render 0 and have no
     // gradient): the transmittance (coverage, kept for the reverse pass) or the density
     // (additive, dropped after pooling).
@@ -834,9 +834,9 @@ pub fn forward<T: SplatReal>(grid: &SplatGrid, uv: Vec<[T; 2]>) -> (Vec<T>, Spla
             let tg = g.tile(t, grid);
             let pts = &coords[tile_start[t]..tile_start[t + 1]];
             if coverage {
-                tile_forward::<T, true>(simd, &g, &k, &tg, s, pts, buf)
+                tile_forward::<T, true>(isa, &g, &k, &tg, s, pts, buf)
             } else {
-                tile_forward::<T, false>(simd, &g, &k, &tg, s, pts, buf)
+                tile_forward::<T, false>(isa, &g, &k, &tg, s, pts, buf)
             }
         })
         .collect();
@@ -860,6 +860,7 @@ pub fn forward<T: SplatReal>(grid: &SplatGrid, uv: Vec<[T; 2]>) -> (Vec<T>, Spla
             coords,
             used,
             trans: bufs,
+            isa,
         },
     )
 }
@@ -875,7 +876,7 @@ pub fn backward<T: SplatReal>(
     let tl = g.tile_len();
     let coverage = grid.blend == Blend::Coverage;
     let k = Consts::<T>::new(grid, &g);
-    let simd = has_avx2();
+    let isa = state.isa;
     let (entries, coords, tile_start) = (&state.entries, &state.coords, &state.tile_start);
     let partials: Vec<Vec<[f64; 2]>> = state
         .used
@@ -886,9 +887,9 @@ pub fn backward<T: SplatReal>(
             let tg = g.tile(t, grid);
             if coverage {
                 let trans = &state.trans[slot * tl..(slot + 1) * tl];
-                tile_backward::<T, true>(simd, &g, &k, &tg, s, grid.width, pts, trans, grad_image)
+                tile_backward::<T, true>(isa, &g, &k, &tg, s, grid.width, pts, trans, grad_image)
             } else {
-                tile_backward::<T, false>(simd, &g, &k, &tg, s, grid.width, pts, &[], grad_image)
+                tile_backward::<T, false>(isa, &g, &k, &tg, s, grid.width, pts, &[], grad_image)
             }
         })
         .collect();
@@ -933,7 +934,7 @@ mod tests {
     )]
     fn simd_and_generic_rows_agree_bit_for_bit() {
         assert!(
-            has_avx2(),
+            Isa::Fma.is_available(),
             "this x86-64 CPU has no AVX2: the SIMD rows cannot be checked"
         );
         let grid = SplatGrid {
@@ -970,25 +971,109 @@ mod tests {
                 .collect();
             let mut b = a.clone();
             if coverage {
-                f32::footprint_forward::<true>(true, &mut a, 3, stride, &wx, &wy, &k);
-                f32::footprint_forward::<true>(false, &mut b, 3, stride, &wx, &wy, &k);
+                f32::footprint_forward::<true>(Isa::Fma, &mut a, 3, stride, &wx, &wy, &k);
+                f32::footprint_forward::<true>(Isa::Portable, &mut b, 3, stride, &wx, &wy, &k);
             } else {
-                f32::footprint_forward::<false>(true, &mut a, 3, stride, &wx, &wy, &k);
-                f32::footprint_forward::<false>(false, &mut b, 3, stride, &wx, &wy, &k);
+                f32::footprint_forward::<false>(Isa::Fma, &mut a, 3, stride, &wx, &wy, &k);
+                f32::footprint_forward::<false>(Isa::Portable, &mut b, 3, stride, &wx, &wy, &k);
             }
             assert_eq!(a, b, "forward, coverage = {coverage}");
             let (r1, r2) = if coverage {
                 (
-                    f32::footprint_backward::<true>(true, &k, &h, 3, stride, &wx, &dx, &wy, &dy),
-                    f32::footprint_backward::<true>(false, &k, &h, 3, stride, &wx, &dx, &wy, &dy),
+                    f32::footprint_backward::<true>(
+                        Isa::Fma,
+                        &k,
+                        &h,
+                        3,
+                        stride,
+                        &wx,
+                        &dx,
+                        &wy,
+                        &dy,
+                    ),
+                    f32::footprint_backward::<true>(
+                        Isa::Portable,
+                        &k,
+                        &h,
+                        3,
+                        stride,
+                        &wx,
+                        &dx,
+                        &wy,
+                        &dy,
+                    ),
                 )
             } else {
                 (
-                    f32::footprint_backward::<false>(true, &k, &h, 3, stride, &wx, &dx, &wy, &dy),
-                    f32::footprint_backward::<false>(false, &k, &h, 3, stride, &wx, &dx, &wy, &dy),
+                    f32::footprint_backward::<false>(
+                        Isa::Fma,
+                        &k,
+                        &h,
+                        3,
+                        stride,
+                        &wx,
+                        &dx,
+                        &wy,
+                        &dy,
+                    ),
+                    f32::footprint_backward::<false>(
+                        Isa::Portable,
+                        &k,
+                        &h,
+                        3,
+                        stride,
+                        &wx,
+                        &dx,
+                        &wy,
+                        &dy,
+                    ),
                 )
             };
             assert_eq!(r1, r2, "backward, coverage = {coverage}");
+        }
+    }
+
+    /// Whole forward and reverse passes on the two instruction sets give the same bits.
+    #[test]
+    #[cfg_attr(
+        not(target_arch = "x86_64"),
+        ignore = "the AVX2 rows exist on x86-64 only"
+    )]
+    fn forward_and_backward_agree_across_instruction_sets() {
+        assert!(
+            Isa::Fma.is_available(),
+            "this x86-64 CPU has no AVX2: the SIMD path cannot be checked"
+        );
+        for blend in [Blend::Coverage, Blend::Additive] {
+            let grid = SplatGrid {
+                width: 24,
+                height: 20,
+                supersample: 3,
+                sigma: 1.4,
+                radius: 3.0,
+                alpha_max: 0.99,
+                blend,
+            };
+            let uv: Vec<[f32; 2]> = (0..900)
+                .map(|i| {
+                    let t = i as f32 * 0.618;
+                    [
+                        36.0 + 30.0 * (t * 0.37).sin(),
+                        30.0 + 25.0 * (t * 0.23).cos(),
+                    ]
+                })
+                .collect();
+            let (ia, sa) = forward_with_isa(&grid, uv.clone(), Isa::Fma);
+            let (ib, sb) = forward_with_isa(&grid, uv, Isa::Portable);
+            assert_eq!(ia, ib, "forward, {blend:?}");
+            let g: Vec<f32> = (0..ia.len())
+                .map(|i| ((i * 37 % 101) as f32 / 50.0 - 1.0) * 0.3)
+                .collect();
+            assert_eq!(
+                backward(&grid, &sa, &g),
+                backward(&grid, &sb, &g),
+                "backward, {blend:?}"
+            );
         }
     }
 }

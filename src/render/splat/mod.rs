@@ -57,7 +57,7 @@ pub mod trajectories;
 use serde::{Deserialize, Serialize};
 
 pub use candle_op::{SplatOp, maps_from_tensor, maps_to_tensor, params_to_tensor};
-pub use frame::{FrameState, SplatFraming};
+pub use frame::{FrameState, SplatFraming, SplatView};
 pub use iteration::{gpu_route, objective_and_grad, objective_and_grad_candle, render_msmse};
 pub use kernel::{Blend, SplatGrid, SplatReal, SplatState, release_buffers};
 pub use trajectories::TrajectoryTape;
@@ -65,6 +65,7 @@ pub use trajectories::TrajectoryTape;
 use crate::budget::MemoryEstimate;
 use crate::chaos::ChaosGame;
 use crate::error::{Error, Result};
+use crate::isa::Isa;
 use crate::model::diff_map::{DiffMap2, check_finite_params, flat_params, param_offsets};
 
 /// Where the splat kernel runs.
@@ -136,7 +137,7 @@ pub struct SplatConfig {
     /// Trajectory layout (its `seed` is ignored: each call passes its own).
     pub game: ChaosGame,
     /// Fit the points (differentiably) or use a fixed window.
-    pub framing: SplatFraming,
+    pub framing: SplatView,
     /// Where the splat runs.
     #[serde(skip_serializing_if = "SplatDevice::is_cpu")]
     pub device: SplatDevice,
@@ -155,7 +156,7 @@ impl Default for SplatConfig {
             blend: Blend::Coverage,
             alpha_max: 0.99,
             game: ChaosGame::default(),
-            framing: SplatFraming::default(),
+            framing: SplatView::default(),
             device: SplatDevice::Cpu,
         }
     }
@@ -281,7 +282,7 @@ pub fn forward_with_probabilities<T: SplatReal>(
     let (image, splat) = match cfg.device {
         SplatDevice::Cpu => {
             let uv: Vec<[T; 2]> = kept.iter().map(|p| frame.project(p)).collect();
-            let (image, state) = kernel::forward(&grid, uv);
+            let (image, state) = kernel::forward_with_isa(&grid, uv, tape.isa);
             (image, SplatStateOn::Cpu(state))
         }
         #[cfg(feature = "cuda")]
@@ -304,7 +305,9 @@ pub fn forward_with_probabilities<T: SplatReal>(
 }
 
 /// Steps 1–2 of the forward pass (checks, chaos game, framing): the tape, the kept points
-/// and the frame they are projected through.
+/// and the frame they are projected through. The instruction set of the whole call (chaos
+/// game, splat kernel, and the reverse pass, which reads it from the tapes) is decided
+/// here, once ([`Isa::detect`]).
 fn trace(
     cfg: &SplatConfig,
     maps: &[impl DiffMap2],
@@ -319,7 +322,7 @@ fn trace(
         return Err(Error::param("maps", "at most 65535 maps"));
     }
     check_finite_params(&flat_params(maps), &param_offsets(maps))?;
-    let tape = trajectories::run(&cfg.game, maps, probs, seed)?;
+    let tape = trajectories::run_with_isa(&cfg.game, maps, probs, seed, Isa::detect())?;
     let kept = tape.kept_points();
     let frame = frame::fit(
         &cfg.framing,

@@ -11,7 +11,7 @@ use crate::model::flame::scalar::FlameScalar;
 
 type P<T> = (T, T);
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn noise<T: FlameScalar, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R) -> P<T> {
     let a = rand01(rng) * 2.0 * PI;
     let (s, c) = a.sin_cos();
@@ -21,7 +21,7 @@ pub(super) fn noise<T: FlameScalar, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: 
 
 /// julian: one of the `|power|` roots of z^dist, drawn at random.
 /// `d = [|power|, dist/power/2]`.
-#[inline(never)]
+#[inline(always)]
 pub(super) fn julian<T: FlameScalar, R: RngCore + ?Sized>(
     w: T,
     p: &[T; 8],
@@ -35,7 +35,7 @@ pub(super) fn julian<T: FlameScalar, R: RngCore + ?Sized>(
     from_polar(r, a)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn juliascope<T: FlameScalar, R: RngCore + ?Sized>(
     w: T,
     p: &[T; 8],
@@ -53,14 +53,14 @@ pub(super) fn juliascope<T: FlameScalar, R: RngCore + ?Sized>(
     from_polar(r, a)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn blur<T: FlameScalar, R: RngCore + ?Sized>(w: T, rng: &mut R) -> P<T> {
     let a = rand01(rng) * 2.0 * PI;
     let r = w * rand01(rng);
     from_polar(r, T::cst(a))
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn gaussian_blur<T: FlameScalar, R: RngCore + ?Sized>(w: T, rng: &mut R) -> P<T> {
     let a = rand01(rng) * 2.0 * PI;
     let r = w * four_uniforms(rng);
@@ -68,7 +68,7 @@ pub(super) fn gaussian_blur<T: FlameScalar, R: RngCore + ?Sized>(w: T, rng: &mut
 }
 
 /// radial_blur: `d = [sin(angle·π/2), cos(angle·π/2)]` (spin and zoom amounts).
-#[inline(never)]
+#[inline(always)]
 pub(super) fn radial_blur<T: FlameScalar, R: RngCore + ?Sized>(
     w: T,
     d: &[T; 4],
@@ -83,7 +83,7 @@ pub(super) fn radial_blur<T: FlameScalar, R: RngCore + ?Sized>(
     (ra * c + rz * f.tx, ra * s + rz * f.ty)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn pie<T: FlameScalar, R: RngCore + ?Sized>(w: T, p: &[T; 8], rng: &mut R) -> P<T> {
     let (slices, rotation, thickness) = (p[0], p[1], p[2]);
     let sl = c_int(rand01(rng) * slices.v() + 0.5);

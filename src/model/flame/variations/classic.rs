@@ -17,18 +17,18 @@ pub(super) fn linear<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     (w * f.tx, w * f.ty)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn sinusoidal<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     (w * f.tx.sin(), w * f.ty.sin())
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn spherical<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let r2 = w / (f.sumsq + EPS);
     (r2 * f.tx, r2 * f.ty)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn swirl<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (c1, c2) = f.sumsq.sin_cos();
     let nx = c1 * f.tx - c2 * f.ty;
@@ -36,27 +36,27 @@ pub(super) fn swirl<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     (w * nx, w * ny)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn horseshoe<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let r = w / (f.sqrt + EPS);
     ((f.tx - f.ty) * (f.tx + f.ty) * r, f.tx * 2.0 * f.ty * r)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn polar<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let nx = f.atan_xy() * FRAC_1_PI;
     let ny = f.sqrt - 1.0;
     (w * nx, w * ny)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn handkerchief<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let a = f.atan_xy();
     let r = f.sqrt;
     (w * r * (a + r).sin(), w * r * (a - r).cos())
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn heart<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let a = f.sqrt * f.atan_xy();
     let (sa, ca) = a.sin_cos();
@@ -64,7 +64,7 @@ pub(super) fn heart<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     (r * sa, (-r) * ca)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn disc<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let a = f.atan_xy() * FRAC_1_PI;
     let r = f.sqrt * PI;
@@ -72,7 +72,7 @@ pub(super) fn disc<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     (w * sr * a, w * cr * a)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn spiral<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let r = f.sqrt + EPS;
     let r1 = w / r;
@@ -80,19 +80,19 @@ pub(super) fn spiral<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     (r1 * (f.cosa() + sr), r1 * (f.sina() - cr))
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn hyperbolic<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let r = f.sqrt + EPS;
     (w * f.sina() / r, w * f.cosa() * r)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn diamond<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (sr, cr) = f.sqrt.sin_cos();
     (w * f.sina() * cr, w * f.cosa() * sr)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn ex<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let a = f.atan_xy();
     let r = f.sqrt;
@@ -104,7 +104,7 @@ pub(super) fn ex<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
 }
 
 /// julia: the square root z ↦ ±√z, the branch drawn at random (one bit).
-#[inline(never)]
+#[inline(always)]
 pub(super) fn julia<T: FlameScalar, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R) -> P<T> {
     let mut a = f.atan_xy() * 0.5;
     if rand_bit(rng) {
@@ -114,7 +114,7 @@ pub(super) fn julia<T: FlameScalar, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: 
     from_polar(r, a)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn bent<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let mut nx = f.tx;
     let mut ny = f.ty;
@@ -128,7 +128,7 @@ pub(super) fn bent<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
 }
 
 /// waves: amplitudes are the coefficients `c`, `d`, periods `e²`, `f²`.
-#[inline(never)]
+#[inline(always)]
 pub(super) fn waves<T: FlameScalar>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
     let dx2 = T::cst(1.0) / (c[4] * c[4] + EPS);
     let dy2 = T::cst(1.0) / (c[5] * c[5] + EPS);
@@ -138,14 +138,14 @@ pub(super) fn waves<T: FlameScalar>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
 }
 
 /// fisheye, with flam3's swapped output (x' ∝ y, y' ∝ x).
-#[inline(never)]
+#[inline(always)]
 pub(super) fn fisheye<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let r = w * 2.0 / (f.sqrt + 1.0);
     (r * f.ty, r * f.tx)
 }
 
 /// popcorn: amplitudes are the offsets `e`, `f`.
-#[inline(never)]
+#[inline(always)]
 pub(super) fn popcorn<T: FlameScalar>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
     let dx = (f.ty * 3.0).tan();
     let dy = (f.tx * 3.0).tan();
@@ -154,21 +154,21 @@ pub(super) fn popcorn<T: FlameScalar>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
     (w * nx, w * ny)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn exponential<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let dx = w * (f.tx - 1.0).exp();
     let dy = f.ty * PI;
     from_polar(dx, dy)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn power<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let sina = f.sina();
     let r = w * f.sqrt.pow(sina);
     (r * f.cosa(), r * sina)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn cosine<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let a = f.tx * PI;
     let (sa, ca) = a.sin_cos();
@@ -178,7 +178,7 @@ pub(super) fn cosine<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
 }
 
 /// rings: the ring spacing is `e² + ε`.
-#[inline(never)]
+#[inline(always)]
 pub(super) fn rings<T: FlameScalar>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
     let dx = c[4] * c[4] + EPS;
     let r = f.sqrt;
@@ -187,7 +187,7 @@ pub(super) fn rings<T: FlameScalar>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
 }
 
 /// fan: blade width π(e² + ε), phase `f`.
-#[inline(never)]
+#[inline(always)]
 pub(super) fn fan<T: FlameScalar>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
     let dx = (c[4] * c[4] + EPS) * PI;
     let dy = c[5];
@@ -202,7 +202,7 @@ pub(super) fn fan<T: FlameScalar>(w: T, c: &[T; 6], f: &Pre<T>) -> P<T> {
     from_polar(r, a)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn blob<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (low, high, waves) = (p[0], p[1], p[2]);
     let a = f.atan_xy();
@@ -211,7 +211,7 @@ pub(super) fn blob<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     (w * f.sina() * r, w * f.cosa() * r)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn pdj<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let nx1 = (p[1] * f.tx).cos();
     let nx2 = (p[2] * f.tx).sin();
@@ -220,7 +220,7 @@ pub(super) fn pdj<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     (w * (ny1 - nx1), w * (nx2 - ny2))
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn fan2<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let dy = p[1];
     let dx = (p[0] * p[0] + EPS) * PI;
@@ -237,7 +237,7 @@ pub(super) fn fan2<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     (r * sa, r * ca)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn rings2<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let r = f.sqrt;
     let dx = p[0] * p[0] + EPS;
@@ -246,25 +246,25 @@ pub(super) fn rings2<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     (w * f.sina() * r, w * f.cosa() * r)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn eyefish<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let r = w * 2.0 / (f.sqrt + 1.0);
     (r * f.tx, r * f.ty)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn bubble<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let r = w / (f.sumsq * 0.25 + 1.0);
     (r * f.tx, r * f.ty)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn cylinder<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     (w * f.tx.sin(), w * f.ty)
 }
 
 /// perspective: `d = [sin(angle·π/2), dist·cos(angle·π/2)]`.
-#[inline(never)]
+#[inline(always)]
 pub(super) fn perspective<T: FlameScalar>(w: T, p: &[T; 8], d: &[T; 4], f: &Pre<T>) -> P<T> {
     let dist = p[1];
     let t = T::cst(1.0) / (dist - f.ty * d[0]);

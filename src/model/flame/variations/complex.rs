@@ -7,33 +7,33 @@ use crate::model::flame::scalar::FlameScalar;
 
 type P<T> = (T, T);
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn exp<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let e = f.tx.exp();
     let (s, c) = f.ty.sin_cos();
     (w * e * c, w * e * s)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn log<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     (w * 0.5 * f.sumsq.ln(), w * f.atan_yx())
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn sin<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (s, c) = f.tx.sin_cos();
     let (sh, ch) = (f.ty.sinh(), f.ty.cosh());
     (w * s * ch, w * c * sh)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn cos<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (s, c) = f.tx.sin_cos();
     let (sh, ch) = (f.ty.sinh(), f.ty.cosh());
     (w * c * ch, -(w * s * sh))
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn tan<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (s, c) = (f.tx * 2.0).sin_cos();
     let (sh, ch) = ((f.ty * 2.0).sinh(), (f.ty * 2.0).cosh());
@@ -41,7 +41,7 @@ pub(super) fn tan<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     (w * den * s, w * den * sh)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn sec<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (s, c) = f.tx.sin_cos();
     let (sh, ch) = (f.ty.sinh(), f.ty.cosh());
@@ -49,7 +49,7 @@ pub(super) fn sec<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     (w * den * c * ch, w * den * s * sh)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn csc<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (s, c) = f.tx.sin_cos();
     let (sh, ch) = (f.ty.sinh(), f.ty.cosh());
@@ -57,7 +57,7 @@ pub(super) fn csc<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     (w * den * s * ch, -(w * den * c * sh))
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn cot<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (s, c) = (f.tx * 2.0).sin_cos();
     let (sh, ch) = ((f.ty * 2.0).sinh(), (f.ty * 2.0).cosh());
@@ -65,21 +65,21 @@ pub(super) fn cot<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     (w * den * s, w * den * -1.0 * sh)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn sinh<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (s, c) = f.ty.sin_cos();
     let (sh, ch) = (f.tx.sinh(), f.tx.cosh());
     (w * sh * c, w * ch * s)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn cosh<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (s, c) = f.ty.sin_cos();
     let (sh, ch) = (f.tx.sinh(), f.tx.cosh());
     (w * ch * c, w * sh * s)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn tanh<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (s, c) = (f.ty * 2.0).sin_cos();
     let (sh, ch) = ((f.tx * 2.0).sinh(), (f.tx * 2.0).cosh());
@@ -87,7 +87,7 @@ pub(super) fn tanh<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     (w * den * sh, w * den * s)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn sech<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (s, c) = f.ty.sin_cos();
     let (sh, ch) = (f.tx.sinh(), f.tx.cosh());
@@ -95,7 +95,7 @@ pub(super) fn sech<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     (w * den * c * ch, -(w * den * s * sh))
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn csch<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (s, c) = f.ty.sin_cos();
     let (sh, ch) = (f.tx.sinh(), f.tx.cosh());
@@ -103,7 +103,7 @@ pub(super) fn csch<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     (w * den * sh * c, -(w * den * ch * s))
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn coth<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let (s, c) = (f.ty * 2.0).sin_cos();
     let (sh, ch) = ((f.tx * 2.0).sinh(), (f.tx * 2.0).cosh());

@@ -6,7 +6,7 @@ use crate::model::flame::scalar::FlameScalar;
 type P<T> = (T, T);
 
 /// auger: `p = [sym, weight, freq, scale]`.
-#[inline(never)]
+#[inline(always)]
 pub(super) fn auger<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (sym, aw, freq, scale) = (p[0], p[1], p[2], p[3]);
     let s = (freq * f.tx).sin();
@@ -17,7 +17,7 @@ pub(super) fn auger<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 /// flux: the weight also places the two poles at (±weight, 0).
-#[inline(never)]
+#[inline(always)]
 pub(super) fn flux<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let xpw = f.tx + w;
     let xmw = f.tx - w;
@@ -29,7 +29,7 @@ pub(super) fn flux<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 /// mobius: (a·z + b)/(c·z + d) with `p = [re a, im a, re b, im b, re c, im c, re d, im d]`.
-#[inline(never)]
+#[inline(always)]
 pub(super) fn mobius<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (ra, ia, rb, ib, rc, ic, rd, id) = (p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7]);
     let re_u = ra * f.tx - ia * f.ty + rb;

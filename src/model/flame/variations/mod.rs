@@ -7,6 +7,14 @@
 //! - [`complex`]: exp, log and the complex trigonometric and hyperbolic functions;
 //! - [`extra`]: auger, flux, mobius.
 //!
+//! **Compilation** ([`crate::isa`]): the formulas are `#[inline(always)]`; `eval_on` runs
+//! them through one out-of-line function per instruction set that holds the whole `match`
+//! over the 99 variations — the portable one, and one compiled with AVX2 and FMA, where the
+//! trigonometry of [`crate::math::trig`] inlines into each formula with single-instruction
+//! fused multiply–adds. A transform's variations cost one call each, as when every formula
+//! was its own function; `linear` is inlined into the caller. Both copies give the same
+//! bits.
+//!
 //! Each formula follows flam3 3.1.1 operation for operation (same evaluation order, same
 //! ε, flam3's angle convention θ = atan2(x, y) where flam3 uses it), so renders agree with
 //! flam3 to rounding. A random variation takes its draws from the trajectory's generator
@@ -22,6 +30,7 @@ mod zplus;
 
 use rand::RngCore;
 
+use crate::isa::{FmaIsa, Isa, IsaLevel, PortableIsa};
 use crate::model::flame::scalar::FlameScalar;
 use crate::model::flame::variation::{MAX_DERIVED, MAX_PARAMS, VariationKind};
 
@@ -140,13 +149,91 @@ pub(crate) fn c_int(x: f64) -> f64 {
     c_int32(x) as f64
 }
 
+/// [`eval`] compiled for instruction set `I`: `linear` inline, every other variation through
+/// that instruction set's out-of-line copy of the `match`.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub(crate) fn eval_on<I: IsaLevel, T: FlameScalar, R: RngCore + ?Sized>(
+    _isa: I,
+    kind: VariationKind,
+    w: T,
+    p: &[T; MAX_PARAMS],
+    d: &[T; MAX_DERIVED],
+    c: &[T; 6],
+    f: &Pre<T>,
+    rng: &mut R,
+) -> (T, T) {
+    if kind == VariationKind::Linear {
+        return classic::linear(w, f);
+    }
+    match I::ISA {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: a value of an `IsaLevel` whose `ISA` is `Fma` exists only where the CPU
+        // was found to have AVX2, FMA and BMI1/2 (`FmaIsa`'s constructors).
+        Isa::Fma => unsafe { eval_fma(kind, w, p, d, c, f, rng) },
+        _ => eval_portable(kind, w, p, d, c, f, rng),
+    }
+}
+
+/// [`eval_on`] on the instruction set this CPU has best (one cached load per call: for
+/// callers outside the renderers' loops).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub(crate) fn eval_detected<T: FlameScalar, R: RngCore + ?Sized>(
+    kind: VariationKind,
+    w: T,
+    p: &[T; MAX_PARAMS],
+    d: &[T; MAX_DERIVED],
+    c: &[T; 6],
+    f: &Pre<T>,
+    rng: &mut R,
+) -> (T, T) {
+    match FmaIsa::detect() {
+        Some(isa) => eval_on(isa, kind, w, p, d, c, f, rng),
+        None => eval_on(PortableIsa, kind, w, p, d, c, f, rng),
+    }
+}
+
+/// The portable copy of [`eval`].
+#[allow(clippy::too_many_arguments)]
+#[inline(never)]
+fn eval_portable<T: FlameScalar, R: RngCore + ?Sized>(
+    kind: VariationKind,
+    w: T,
+    p: &[T; MAX_PARAMS],
+    d: &[T; MAX_DERIVED],
+    c: &[T; 6],
+    f: &Pre<T>,
+    rng: &mut R,
+) -> (T, T) {
+    eval(kind, w, p, d, c, f, rng)
+}
+
+/// [`eval`] compiled with AVX2, FMA and BMI1/2.
+#[cfg(target_arch = "x86_64")]
+#[allow(clippy::too_many_arguments)]
+#[inline(never)]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2")]
+fn eval_fma<T: FlameScalar, R: RngCore + ?Sized>(
+    kind: VariationKind,
+    w: T,
+    p: &[T; MAX_PARAMS],
+    d: &[T; MAX_DERIVED],
+    c: &[T; 6],
+    f: &Pre<T>,
+    rng: &mut R,
+) -> (T, T) {
+    eval(kind, w, p, d, c, f, rng)
+}
+
 /// The contribution `(Δx, Δy)` of variation `kind` with weight `w`, parameters `p`, values
 /// derived from them `d`, the transform's pre-affine coefficients `c` (flam3 order
 /// `a b c d e f`) at point `f`. `pre_blur` contributes nothing here: it moves the point
-/// before the variations run (see the transform).
+/// before the variations run (see the transform). Every formula is inlined here: callers go
+/// through [`eval_on`], which keeps this `match` out of line once per instruction set.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-pub(crate) fn eval<T: FlameScalar, R: RngCore + ?Sized>(
+fn eval<T: FlameScalar, R: RngCore + ?Sized>(
     kind: VariationKind,
     w: T,
     p: &[T; MAX_PARAMS],

@@ -12,7 +12,7 @@ use crate::model::flame::scalar::FlameScalar;
 type P<T> = (T, T);
 
 /// disc2: `d = [rot·π, sin add, cos add − 1]` (add = twist, scaled beyond ±2π as flam3).
-#[inline(never)]
+#[inline(always)]
 pub(super) fn disc2<T: FlameScalar>(w: T, d: &[T; 4], f: &Pre<T>) -> P<T> {
     let t = d[0] * (f.tx + f.ty);
     let (s, c) = t.sin_cos();
@@ -22,7 +22,7 @@ pub(super) fn disc2<T: FlameScalar>(w: T, d: &[T; 4], f: &Pre<T>) -> P<T> {
 
 /// super_shape: `p = [rnd, m, n1, n2, n3, holes]`, `d = [m/4, −1/n1]`. Draws one number
 /// whatever `rnd` (which mixes it with the radius).
-#[inline(never)]
+#[inline(always)]
 pub(super) fn super_shape<T: FlameScalar, R: RngCore + ?Sized>(
     w: T,
     p: &[T; 8],
@@ -40,7 +40,7 @@ pub(super) fn super_shape<T: FlameScalar, R: RngCore + ?Sized>(
     (r * f.tx, r * f.ty)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn flower<T: FlameScalar, R: RngCore + ?Sized>(
     w: T,
     p: &[T; 8],
@@ -52,7 +52,7 @@ pub(super) fn flower<T: FlameScalar, R: RngCore + ?Sized>(
     (r * f.tx, r * f.ty)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn conic<T: FlameScalar, R: RngCore + ?Sized>(
     w: T,
     p: &[T; 8],
@@ -65,7 +65,7 @@ pub(super) fn conic<T: FlameScalar, R: RngCore + ?Sized>(
     (r * f.tx, r * f.ty)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn parabola<T: FlameScalar, R: RngCore + ?Sized>(
     w: T,
     p: &[T; 8],
@@ -78,7 +78,7 @@ pub(super) fn parabola<T: FlameScalar, R: RngCore + ?Sized>(
     (x, y)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn bent2<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let mut nx = f.tx;
     let mut ny = f.ty;
@@ -91,7 +91,7 @@ pub(super) fn bent2<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     (w * nx, w * ny)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn bipolar<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let x2y2 = f.sumsq;
     let t = x2y2 + 1.0;
@@ -109,7 +109,7 @@ pub(super) fn bipolar<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     )
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn boarders<T: FlameScalar, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R) -> P<T> {
     let rx = T::cst(rint(f.tx.v()));
     let ry = T::cst(rint(f.ty.v()));
@@ -143,7 +143,7 @@ pub(super) fn boarders<T: FlameScalar, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rn
     }
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn butterfly<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     // 4/√(3π)
     let wx = w * 1.302_940_031_741_119_7;
@@ -152,7 +152,7 @@ pub(super) fn butterfly<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     (r * f.tx, r * y2)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn cell<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let size = p[0];
     let inv = T::cst(1.0) / size;
@@ -174,7 +174,7 @@ pub(super) fn cell<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     (w * (dx + size * x as f64), -(w * (dy + size * y as f64)))
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn cpow<T: FlameScalar, R: RngCore + ?Sized>(
     w: T,
     p: &[T; 8],
@@ -193,7 +193,7 @@ pub(super) fn cpow<T: FlameScalar, R: RngCore + ?Sized>(
     from_polar(m, ang)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn curve<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (xamp, yamp) = (p[0], p[1]);
     let mut xlen = p[2] * p[2];
@@ -210,7 +210,7 @@ pub(super) fn curve<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     )
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn edisc<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let tmp = f.sumsq + 1.0;
     let tmp2 = f.tx * 2.0;
@@ -229,7 +229,7 @@ pub(super) fn edisc<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     (w * cshu * csv, w * snhu * snv)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn elliptic<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let tmp = f.sumsq + 1.0;
     let x2 = f.tx * 2.0;
@@ -249,7 +249,7 @@ pub(super) fn elliptic<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     (x, if f.ty.v() > 0.0 { l } else { -l })
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn escher<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let a = f.atan_yx();
     let lnr = f.sumsq.ln() * 0.5;
@@ -261,7 +261,7 @@ pub(super) fn escher<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     from_polar(m, n)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn foci<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let expx = f.tx.exp() * 0.5;
     let expnx = T::cst(0.25) / expx;
@@ -272,7 +272,7 @@ pub(super) fn foci<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
 
 /// lazysusan: `p = [spin, space, twist, x, y]`; the disc of radius `weight` around
 /// `(x, −y)` turns, the rest is pushed out by `space`.
-#[inline(never)]
+#[inline(always)]
 pub(super) fn lazysusan<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (spin, space, twist, lx, ly) = (p[0], p[1], p[2], p[3], p[4]);
     let x = f.tx - lx;
@@ -289,7 +289,7 @@ pub(super) fn lazysusan<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     }
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn loonie<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let r2 = f.sumsq;
     let w2 = w * w;
@@ -301,7 +301,7 @@ pub(super) fn loonie<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     }
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn modulus<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let wrap = |t: T, m: T| {
         let r = m * 2.0;
@@ -317,7 +317,7 @@ pub(super) fn modulus<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 /// oscilloscope: `p = [separation, frequency, amplitude, damping]`.
-#[inline(never)]
+#[inline(always)]
 pub(super) fn oscilloscope<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (sep, freq, amp, damp) = (p[0], p[1], p[2], p[3]);
     let tpf = freq * (2.0 * PI);
@@ -333,13 +333,13 @@ pub(super) fn oscilloscope<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T>
     }
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn polar2<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let p2v = w / PI;
     (p2v * f.atan_xy(), p2v / 2.0 * f.sumsq.ln())
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn popcorn2<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (px, py, pc) = (p[0], p[1], p[2]);
     (
@@ -348,7 +348,7 @@ pub(super) fn popcorn2<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     )
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn scry<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let t = f.sumsq;
     let r = T::cst(1.0) / (f.sqrt * (t + T::cst(1.0) / (w + EPS)));
@@ -356,7 +356,7 @@ pub(super) fn scry<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
 }
 
 /// separation: `p = [x, xinside, y, yinside]`.
-#[inline(never)]
+#[inline(always)]
 pub(super) fn separation<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let side = |t: T, s: T, inside: T| {
         let s2 = s * s;
@@ -369,7 +369,7 @@ pub(super) fn separation<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     (side(f.tx, p[0], p[1]), side(f.ty, p[2], p[3]))
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn split<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let y = if (f.tx * p[0] * PI).cos().v() >= 0.0 {
         w * f.ty
@@ -384,7 +384,7 @@ pub(super) fn split<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     (x, y)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn splits<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let x = if f.tx.v() >= 0.0 {
         w * (f.tx + p[0])
@@ -399,7 +399,7 @@ pub(super) fn splits<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     (x, y)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn stripes<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (space, warp) = (p[0], p[1]);
     let roundx = T::cst((f.tx + 0.5).v().floor());
@@ -411,7 +411,7 @@ pub(super) fn stripes<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 /// wedge: `p = [angle, hole, count, swirl]`.
-#[inline(never)]
+#[inline(always)]
 pub(super) fn wedge<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (angle, hole, count, swirl) = (p[0], p[1], p[2], p[3]);
     let r = f.sqrt;
@@ -425,7 +425,7 @@ pub(super) fn wedge<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 
 /// wedge_julia: `p = [angle, count, power, dist]`, `d = [1 − angle·count/(2π), |power|,
 /// dist/power/2]`.
-#[inline(never)]
+#[inline(always)]
 pub(super) fn wedge_julia<T: FlameScalar, R: RngCore + ?Sized>(
     w: T,
     p: &[T; 8],
@@ -443,7 +443,7 @@ pub(super) fn wedge_julia<T: FlameScalar, R: RngCore + ?Sized>(
 }
 
 /// wedge_sph: `p = [angle, count, hole, swirl]`.
-#[inline(never)]
+#[inline(always)]
 pub(super) fn wedge_sph<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (angle, count, hole, swirl) = (p[0], p[1], p[2], p[3]);
     let r = T::cst(1.0) / (f.sqrt + EPS);
@@ -455,7 +455,7 @@ pub(super) fn wedge_sph<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     from_polar(r, a)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn whorl<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let r = f.sqrt;
     let a = if r.v() < w.v() {
@@ -468,7 +468,7 @@ pub(super) fn whorl<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
 }
 
 /// waves2: `p = [freqx, scalex, freqy, scaley]`.
-#[inline(never)]
+#[inline(always)]
 pub(super) fn waves2<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     (
         w * (f.tx + p[1] * (f.ty * p[0]).sin()),

@@ -11,7 +11,7 @@ use crate::model::flame::scalar::FlameScalar;
 
 type P<T> = (T, T);
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn ngon<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (sides, power, circle, corners) = (p[0], p[1], p[2], p[3]);
     let r_factor = f.sumsq.pow(power / 2.0);
@@ -26,7 +26,7 @@ pub(super) fn ngon<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     (w * f.tx * amp, w * f.ty * amp)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn curl<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let (c1, c2) = (p[0], p[1]);
     let re = c1 * f.tx + 1.0 + c2 * (f.tx * f.tx - f.ty * f.ty);
@@ -35,7 +35,7 @@ pub(super) fn curl<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     ((f.tx * re + f.ty * im) * r, (f.ty * re - f.tx * im) * r)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn rectangles<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     let fold = |t: T, s: T| {
         if s.v() == 0.0 {
@@ -47,26 +47,26 @@ pub(super) fn rectangles<T: FlameScalar>(w: T, p: &[T; 8], f: &Pre<T>) -> P<T> {
     (fold(f.tx, p[0]), fold(f.ty, p[1]))
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn arch<T: FlameScalar, R: RngCore + ?Sized>(w: T, rng: &mut R) -> P<T> {
     let a = w * rand01(rng) * PI;
     let (s, c) = a.sin_cos();
     (w * s, w * (s * s) / c)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn tangent<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     (w * f.tx.sin() / f.ty.cos(), w * f.ty.tan())
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn square<T: FlameScalar, R: RngCore + ?Sized>(w: T, rng: &mut R) -> P<T> {
     let x = w * (rand01(rng) - 0.5);
     let y = w * (rand01(rng) - 0.5);
     (x, y)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn rays<T: FlameScalar, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R) -> P<T> {
     let a = w * rand01(rng) * PI;
     let r = w / (f.sumsq + EPS);
@@ -74,14 +74,14 @@ pub(super) fn rays<T: FlameScalar, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &
     (tanr * f.tx.cos(), tanr * f.ty.sin())
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn blade<T: FlameScalar, R: RngCore + ?Sized>(w: T, f: &Pre<T>, rng: &mut R) -> P<T> {
     let r = w * rand01(rng) * f.sqrt;
     let (s, c) = r.sin_cos();
     (w * f.tx * (c + s), w * f.tx * (c - s))
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn secant2<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let r = w * f.sqrt;
     let cr = r.cos();
@@ -94,7 +94,7 @@ pub(super) fn secant2<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     (w * f.tx, y)
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn twintrian<T: FlameScalar, R: RngCore + ?Sized>(
     w: T,
     f: &Pre<T>,
@@ -110,7 +110,7 @@ pub(super) fn twintrian<T: FlameScalar, R: RngCore + ?Sized>(
     (w * f.tx * diff, w * f.tx * (diff - s * PI))
 }
 
-#[inline(never)]
+#[inline(always)]
 pub(super) fn cross<T: FlameScalar>(w: T, f: &Pre<T>) -> P<T> {
     let s = f.tx * f.tx - f.ty * f.ty;
     let r = w * (T::cst(1.0) / (s * s + EPS)).sqrt();

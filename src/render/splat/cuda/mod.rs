@@ -29,8 +29,7 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
 
 use cudarc::driver::{
-    CudaContext, CudaFunction, CudaSlice, CudaStream, DeviceRepr, LaunchConfig, PinnedHostSlice,
-    PushKernelArg, ValidAsZeroBits,
+    CudaContext, CudaFunction, CudaSlice, CudaStream, LaunchConfig, PinnedHostSlice, PushKernelArg,
 };
 use cudarc::nvrtc::{CompileOptions, compile_ptx_with_opts};
 
@@ -43,20 +42,8 @@ pub const SOURCE: &str = include_str!("splat.cu");
 /// Threads per block: eight warps, one point per warp.
 const BLOCK: u32 = 256;
 
-/// Precisions the kernels exist in.
-pub trait GpuScalar: DeviceRepr + ValidAsZeroBits + Unpin + Copy + Send + Sync + 'static {
-    /// Suffix of this precision's kernels.
-    #[doc(hidden)]
-    const SUFFIX: &'static str;
-}
-
-impl GpuScalar for f32 {
-    const SUFFIX: &'static str = "f32";
-}
-
-impl GpuScalar for f64 {
-    const SUFFIX: &'static str = "f64";
-}
+/// Precisions the kernels exist in ([`crate::math::GpuScalar`]).
+pub use crate::math::GpuScalar;
 
 struct Gpu {
     stream: Arc<CudaStream>,

@@ -52,7 +52,7 @@ pub use decoder::{
 };
 pub use encoder::{
     Candidates, DistanceCentre, EncodeStats, EncoderConfig, Encoding, HALF_MAX, HALF_MIN,
-    MAX_TOTAL_CANDIDATES, Matching, Reduction, SearchGrid, encode,
+    MAX_TOTAL_CANDIDATES, Matching, Reduction, SearchGrid, encode, encode_with_isa,
 };
 pub use packed::{CoordStorage, Manifest, PackError, PackedCode, load_dir, pack, save_dir, unpack};
 pub use preset::Preset;

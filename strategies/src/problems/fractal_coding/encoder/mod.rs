@@ -36,6 +36,7 @@
 use std::sync::atomic::AtomicU64;
 use std::time::Instant;
 
+use ifslab::isa::Isa;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -338,8 +339,15 @@ pub struct EncodeStats {
 
 /// Encodes a texture with even sides of at least 4 texels (6 for the even-offset grid): R by
 /// a rounded 2×2 box filter (see [`Texture::reduce`]; or [`Texture::reduce_binomial`]), then
-/// the search of the module docs.
+/// the search of the module docs, on the instruction set this CPU has best.
 pub fn encode(source: &Texture, cfg: &EncoderConfig) -> Result<Encoding> {
+    encode_with_isa(source, cfg, Isa::detect())
+}
+
+/// [`encode`] with the search's scoring loops on instruction set `isa` (an error if this CPU
+/// lacks it): the same encoding on every instruction set.
+pub fn encode_with_isa(source: &Texture, cfg: &EncoderConfig, isa: Isa) -> Result<Encoding> {
+    let isa = isa.checked()?;
     cfg.validate()?;
     let (w, h) = (source.width(), source.height());
     if !w.is_multiple_of(2) || !h.is_multiple_of(2) || w < 4 || h < 4 {
@@ -359,7 +367,7 @@ pub fn encode(source: &Texture, cfg: &EncoderConfig) -> Result<Encoding> {
         Reduction::Box => source.reduce()?,
         Reduction::Binomial => source.reduce_binomial()?,
     };
-    let planes = Planes::new(&reduced, cfg);
+    let planes = Planes::new(&reduced, cfg, isa);
     let hr = reduced.height();
     let kept = AtomicU64::new(0);
     let rows: Vec<Vec<TexelResult>> = (0..hr)
@@ -516,6 +524,42 @@ mod tests {
             distance,
             delta_e_max: delta,
             max_candidates: cap,
+        }
+    }
+
+    /// The AVX2 scoring loops and the portable ones find the same candidates with the
+    /// same scores (bit for bit), raw and mean-removed, with and without the distance term.
+    #[test]
+    #[cfg_attr(
+        not(target_arch = "x86_64"),
+        ignore = "the AVX2 loops exist on x86-64 only"
+    )]
+    fn instruction_sets_give_the_same_encoding() {
+        assert!(
+            Isa::Fma.is_available(),
+            "this x86-64 CPU has no AVX2: the SIMD scoring cannot be checked"
+        );
+        use DistanceCentre::*;
+        use SearchGrid::*;
+        for (ch, matching, grid, beta, window) in [
+            (1, Matching::Raw, All, 0.0, 255),
+            (3, Matching::MeanRemoved, Even, 0.5, 7),
+            (1, Matching::MeanRemoved, EvenOffset, 1.0, 255),
+        ] {
+            let s = noise(44, 30, ch, 256, 11 + ch as u64);
+            let cfg = cfg(matching, grid, Range, window, beta, 50.0, Some(9));
+            let a = encode_with_isa(&s, &cfg, Isa::Fma).unwrap();
+            let b = encode_with_isa(&s, &cfg, Isa::Portable).unwrap();
+            assert_eq!(a.code.coords(), b.code.coords(), "{cfg:?}");
+            assert_eq!(a.code.offsets(), b.code.offsets(), "{cfg:?}");
+            for c in 0..a.code.coords().len() {
+                assert_eq!(a.candidates.count(c), b.candidates.count(c), "{cfg:?}");
+                for k in 0..a.candidates.count(c) {
+                    let (x, y) = (a.candidates.get(c, k), b.candidates.get(c, k));
+                    assert_eq!(x.0, y.0, "texel {c}, {cfg:?}");
+                    assert_eq!(x.3.to_bits(), y.3.to_bits(), "texel {c}, {cfg:?}");
+                }
+            }
         }
     }
 

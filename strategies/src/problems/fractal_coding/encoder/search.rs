@@ -1,10 +1,12 @@
 //! The encoder's search: for every texel of the source, the candidate blocks of the reduced
 //! texture R inside its window scored against the texel's range block, the best kept per
 //! texel (`TopK`), one row at a time (`encode` runs the rows in parallel), with AVX2 kernels
-//! where the CPU has them.
+//! when the encoding runs on [`Isa::Fma`] (decided once per encoding, `ifslab::isa`).
 
 use std::cmp::Ordering;
 use std::sync::atomic::{AtomicU64, Ordering as AtomicOrdering};
+
+use ifslab::isa::Isa;
 
 use super::{EncoderConfig, HALF_MAX, HALF_MIN, MAX_TOTAL_CANDIDATES, Matching, SearchGrid};
 use crate::error::{Error, Result};
@@ -28,10 +30,13 @@ pub(super) struct Planes {
     lattices: Vec<Lattice>,
     /// Planes per lattice: 4 or 3 per channel.
     np: usize,
+    /// The instruction set the scoring loops run on (decided once per encoding).
+    isa: Isa,
 }
 
 impl Planes {
-    pub(super) fn new(r: &Texture, cfg: &EncoderConfig) -> Self {
+    /// The planes of `r`; the search scores them on `isa` (available on this CPU).
+    pub(super) fn new(r: &Texture, cfg: &EncoderConfig, isa: Isa) -> Self {
         let s = cfg.grid.stride();
         let classes: &[(usize, usize)] = match cfg.grid {
             SearchGrid::All | SearchGrid::Even => &[(0, 0)],
@@ -78,6 +83,7 @@ impl Planes {
             stride: s,
             lattices,
             np: per * nc,
+            isa,
         }
     }
 
@@ -273,6 +279,21 @@ pub(super) fn search_row(
     cy: usize,
     kept: &AtomicU64,
 ) -> Result<Vec<TexelResult>> {
+    match planes.isa {
+        Isa::Fma => search_row_on::<true>(s, r, planes, cfg, cy, kept),
+        Isa::Portable => search_row_on::<false>(s, r, planes, cfg, cy, kept),
+    }
+}
+
+/// [`search_row`] with the scoring loops of [`search_tile`]`::<AVX2>`.
+fn search_row_on<const AVX2: bool>(
+    s: &Texture,
+    r: &Texture,
+    planes: &Planes,
+    cfg: &EncoderConfig,
+    cy: usize,
+    kept: &AtomicU64,
+) -> Result<Vec<TexelResult>> {
     let wr = r.width();
     let mut out: Vec<Option<TexelResult>> = (0..wr).map(|_| None).collect();
     let max_nx = planes.lattices.iter().map(|l| l.nx).max().unwrap_or(0);
@@ -288,7 +309,7 @@ pub(super) fn search_row(
         while cx < wr {
             let t = if cx + (TILE - 1) * step < wr { TILE } else { 1 };
             let tile: Vec<usize> = (0..t).map(|i| cx + i * step).collect();
-            let tops = search_tile(s, planes, cfg, &tile, cy, &mut buf)?;
+            let tops = search_tile::<AVX2>(s, planes, cfg, &tile, cy, &mut buf)?;
             for (&x, (top, scored)) in tile.iter().zip(tops) {
                 let res = finish(s, r, cfg, x, cy, top, scored);
                 let n = res.coords.len() as u64;
@@ -313,7 +334,10 @@ pub(super) fn search_row(
 
 /// Searches the texels `tile` (same row `cy`, same lattice); returns their candidate sets and
 /// the number of candidates each scored.
-fn search_tile(
+///
+/// `AVX2` picks the scoring loops: true only where the encoding's instruction set is
+/// [`Isa::Fma`] (checked available on this CPU).
+fn search_tile<const AVX2: bool>(
     s: &Texture,
     planes: &Planes,
     cfg: &EncoderConfig,
@@ -371,7 +395,7 @@ fn search_tile(
             beta: cfg.beta,
             dy: y.abs_diff(cy0) as f32,
         };
-        score_row(&job, planes.np, buf, stride, &mut mins);
+        score_row::<AVX2>(&job, planes.np, buf, stride, &mut mins);
         for (i, (top, scored)) in tops.iter_mut().enumerate() {
             let (lo, hi) = (lo[i] as usize, hi[i] as usize);
             *scored += (hi + 1 - lo) as u64;
@@ -422,7 +446,7 @@ struct RowJob<'a> {
 
 /// Scores every candidate of the row for every texel of the tile into `buf` (texel i's
 /// scores at `buf[i * stride..]`, +∞ outside its window) and each texel's minimum into `mins`.
-fn score_row(
+fn score_row<const AVX2: bool>(
     job: &RowJob<'_>,
     nplanes: usize,
     buf: &mut [f32],
@@ -434,10 +458,10 @@ fn score_row(
     macro_rules! dispatch {
         ($np:literal) => {
             match (t, beta) {
-                (TILE, false) => score_row_n::<$np, TILE, false>(job, buf, stride, mins),
-                (TILE, true) => score_row_n::<$np, TILE, true>(job, buf, stride, mins),
-                (_, false) => score_row_n::<$np, 1, false>(job, buf, stride, mins),
-                (_, true) => score_row_n::<$np, 1, true>(job, buf, stride, mins),
+                (TILE, false) => score_row_n::<AVX2, $np, TILE, false>(job, buf, stride, mins),
+                (TILE, true) => score_row_n::<AVX2, $np, TILE, true>(job, buf, stride, mins),
+                (_, false) => score_row_n::<AVX2, $np, 1, false>(job, buf, stride, mins),
+                (_, true) => score_row_n::<AVX2, $np, 1, true>(job, buf, stride, mins),
             }
         };
     }
@@ -449,20 +473,19 @@ fn score_row(
     }
 }
 
-fn score_row_n<const NP: usize, const T: usize, const BETA: bool>(
+fn score_row_n<const AVX2: bool, const NP: usize, const T: usize, const BETA: bool>(
     job: &RowJob<'_>,
     buf: &mut [f32],
     stride: usize,
     mins: &mut [f32; TILE],
 ) {
     #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (checked just above), the only requirement of
-            // the target-feature function; the arithmetic is the same as the portable path.
-            unsafe { score_row_avx2::<NP, T, BETA>(job, buf, stride, mins) };
-            return;
-        }
+    if AVX2 {
+        // SAFETY: `AVX2` is true only where the encoding's `Isa` is `Fma`, which
+        // `Isa::detect` or `Isa::checked` found available (AVX2, FMA, BMI1/2) on this CPU;
+        // the arithmetic is the same as the portable path.
+        unsafe { score_row_avx2::<NP, T, BETA>(job, buf, stride, mins) };
+        return;
     }
     score_row_kernel::<NP, T, BETA>(job, buf, stride, mins);
 }

@@ -1,13 +1,18 @@
-//! `sin`, `cos`, `sin_cos` and `atan2` for the flame variations, compiled with fused
-//! multiply–add where the CPU has it.
+//! `sin`, `cos`, `sin_cos` and `atan2` as fdlibm's polynomials evaluated with fused
+//! multiply–adds: the flame variations' elementary functions.
 //!
 //! These four calls are most of the work of a flame with trigonometric variations: `atan2`,
 //! `sin`, `cos` and `sincos` took a quarter to 40 % of a render's CPU time, spent in glibc.
-//! A default x86-64 build cannot inline faster versions without FMA (each polynomial step
-//! would be a dependent multiply, then an add); compiled with the `fma` target feature, the
-//! same polynomials run in about half glibc's time per call (`benches/flame.rs`,
-//! BENCHMARKS.md §5). So each function here has one FMA body, chosen at run time when the
-//! CPU reports FMA, and otherwise calls the standard library (glibc), as before.
+//! Compiled with the `fma` target feature, the polynomials below run in about half glibc's
+//! time per call (`benches/flame_math.rs`, BENCHMARKS.md §5).
+//!
+//! **How they are compiled** ([`crate::isa`]): every function here is `#[inline(always)]`
+//! and carries no target feature of its own, so it becomes part of the hot loop that calls
+//! it. In a loop's [`Isa::Fma`](crate::isa::Isa::Fma) copy each `mul_add` is one `vfmadd`
+//! instruction and the whole function inlines (no call, no feature check); in portable
+//! code each `mul_add` is a call to the runtime's `fma`, which is exactly rounded too, so
+//! **the results are the same bits on every CPU and in every copy** (tested below) — only
+//! slower where the CPU lacks FMA.
 //!
 //! Accuracy: within 2 ulp of the correctly rounded result over the ranges the variations
 //! use (tested against the standard library on millions of arguments, `tests` below);
@@ -23,63 +28,6 @@
 //! `atan(a) = π/4 + atan((a−1)/(a+1))` and `atan(a) = π/2 − atan(1/a)` (one division),
 //! evaluates fdlibm's odd polynomial for `atan` on it, and places the result in its
 //! quadrant. The coefficients are fdlibm's (Sun Microsystems, 1993), as every libm has them.
-
-/// Whether this CPU runs the FMA bodies (checked once, then a load of a cached flag).
-#[inline(always)]
-pub fn has_fma() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("fma")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
-}
-
-/// `sin(x)`.
-#[inline(always)]
-pub fn sin(x: f64) -> f64 {
-    #[cfg(target_arch = "x86_64")]
-    if has_fma() {
-        // SAFETY: the CPU has FMA.
-        return unsafe { fma::sin(x) };
-    }
-    x.sin()
-}
-
-/// `cos(x)`.
-#[inline(always)]
-pub fn cos(x: f64) -> f64 {
-    #[cfg(target_arch = "x86_64")]
-    if has_fma() {
-        // SAFETY: the CPU has FMA.
-        return unsafe { fma::cos(x) };
-    }
-    x.cos()
-}
-
-/// `(sin(x), cos(x))`.
-#[inline(always)]
-pub fn sin_cos(x: f64) -> (f64, f64) {
-    #[cfg(target_arch = "x86_64")]
-    if has_fma() {
-        // SAFETY: the CPU has FMA.
-        return unsafe { fma::sin_cos(x) };
-    }
-    x.sin_cos()
-}
-
-/// `atan2(y, x)` (C's argument order: the angle of the point `(x, y)`).
-#[inline(always)]
-pub fn atan2(y: f64, x: f64) -> f64 {
-    #[cfg(target_arch = "x86_64")]
-    if has_fma() {
-        // SAFETY: the CPU has FMA.
-        return unsafe { fma::atan2(y, x) };
-    }
-    y.atan2(x)
-}
 
 /// fdlibm's `__kernel_sin` coefficients (`S1`…`S6`).
 #[allow(clippy::excessive_precision)] // fdlibm's digits, as published
@@ -132,141 +80,129 @@ const TRIG_LIMIT: f64 = 1_647_099.0;
 const TAN_PI_8: f64 = 0.414_213_562_373_095_03;
 const TAN_3PI_8: f64 = 2.414_213_562_373_095;
 
-#[cfg(target_arch = "x86_64")]
-mod fma {
-    use super::*;
+/// `x` rounded to the nearest integer, ties to even (for `|x| < 2⁵¹`).
+#[inline(always)]
+fn round(x: f64) -> f64 {
+    const SHIFT: f64 = 6_755_399_441_055_744.0; // 1.5 · 2⁵²
+    (x + SHIFT) - SHIFT
+}
 
-    /// `x` rounded to the nearest integer, ties to even (for `|x| < 2⁵¹`).
-    #[inline(always)]
-    fn round(x: f64) -> f64 {
-        const SHIFT: f64 = 6_755_399_441_055_744.0; // 1.5 · 2⁵²
-        (x + SHIFT) - SHIFT
-    }
+/// Whether `x` is in the fast range (false for NaN and ±∞).
+#[inline(always)]
+fn reducible(x: f64) -> bool {
+    x.abs() <= TRIG_LIMIT
+}
 
-    /// Whether `x` is in the fast range (false for NaN and ±∞).
-    #[inline(always)]
-    fn reducible(x: f64) -> bool {
-        x.abs() <= TRIG_LIMIT
-    }
+/// `x − n·π/2` and `n mod 4`, for `|x| ≤ TRIG_LIMIT`.
+#[inline(always)]
+fn reduce(x: f64) -> (f64, u32) {
+    let n = round(x * std::f64::consts::FRAC_2_PI);
+    // Exact: x and n·PIO2[0] are multiples of 2⁻⁵³ whose difference is below π/2·2.
+    let r = (-n).mul_add(PIO2[0], x);
+    let r = (-n).mul_add(PIO2[1], r);
+    let r = (-n).mul_add(PIO2[2], r);
+    (r, (n as i64 & 3) as u32)
+}
 
-    /// `x − n·π/2` and `n mod 4`, for `|x| ≤ TRIG_LIMIT`.
-    #[inline(always)]
-    fn reduce(x: f64) -> (f64, u32) {
-        let n = round(x * std::f64::consts::FRAC_2_PI);
-        // Exact: x and n·PIO2[0] are multiples of 2⁻⁵³ whose difference is below π/2·2.
-        let r = (-n).mul_add(PIO2[0], x);
-        let r = (-n).mul_add(PIO2[1], r);
-        let r = (-n).mul_add(PIO2[2], r);
-        (r, (n as i64 & 3) as u32)
-    }
+/// fdlibm's `__kernel_sin(r, 0, 0)` on `|r| ≤ π/4`.
+#[inline(always)]
+fn kernel_sin(r: f64) -> f64 {
+    let z = r * r;
+    let z2 = z * z;
+    // S2 + z·S3 + z²·(S4 + z·S5) + z⁴·S6, by pairs (shorter dependency chain).
+    let p = S[2].mul_add(z, S[1]) + z2 * S[4].mul_add(z, S[3]) + (z2 * z2) * S[5];
+    (r * z).mul_add(z.mul_add(p, S[0]), r)
+}
 
-    /// fdlibm's `__kernel_sin(r, 0, 0)` on `|r| ≤ π/4`.
-    #[inline(always)]
-    fn kernel_sin(r: f64) -> f64 {
-        let z = r * r;
-        let z2 = z * z;
-        // S2 + z·S3 + z²·(S4 + z·S5) + z⁴·S6, by pairs (shorter dependency chain).
-        let p = S[2].mul_add(z, S[1]) + z2 * S[4].mul_add(z, S[3]) + (z2 * z2) * S[5];
-        (r * z).mul_add(z.mul_add(p, S[0]), r)
-    }
+/// fdlibm's `__kernel_cos(r, 0)` on `|r| ≤ π/4`.
+#[inline(always)]
+fn kernel_cos(r: f64) -> f64 {
+    let z = r * r;
+    let z2 = z * z;
+    let p = C[1].mul_add(z, C[0]) + z2 * C[3].mul_add(z, C[2]) + (z2 * z2) * C[5].mul_add(z, C[4]);
+    let hz = 0.5 * z;
+    let w = 1.0 - hz;
+    w + (((1.0 - w) - hz) + z * (z * p))
+}
 
-    /// fdlibm's `__kernel_cos(r, 0)` on `|r| ≤ π/4`.
-    #[inline(always)]
-    fn kernel_cos(r: f64) -> f64 {
-        let z = r * r;
-        let z2 = z * z;
-        let p =
-            C[1].mul_add(z, C[0]) + z2 * C[3].mul_add(z, C[2]) + (z2 * z2) * C[5].mul_add(z, C[4]);
-        let hz = 0.5 * z;
-        let w = 1.0 - hz;
-        w + (((1.0 - w) - hz) + z * (z * p))
-    }
+/// `(sin x, cos x)` for `|x| ≤ TRIG_LIMIT`: both kernels (independent, so they overlap)
+/// and the quadrant applied by selects rather than branches on a random quadrant.
+#[inline(always)]
+fn sin_cos_reduced(x: f64) -> (f64, f64) {
+    let (r, q) = reduce(x);
+    let (s, c) = (kernel_sin(r), kernel_cos(r));
+    let (s, c) = if q & 1 == 0 { (s, c) } else { (c, -s) };
+    if q & 2 == 0 { (s, c) } else { (-s, -c) }
+}
 
-    /// `(sin x, cos x)` for `|x| ≤ TRIG_LIMIT`: both kernels (independent, so they overlap)
-    /// and the quadrant applied by selects rather than branches on a random quadrant.
-    #[inline(always)]
-    fn sin_cos_reduced(x: f64) -> (f64, f64) {
-        let (r, q) = reduce(x);
-        let (s, c) = (kernel_sin(r), kernel_cos(r));
-        let (s, c) = if q & 1 == 0 { (s, c) } else { (c, -s) };
-        if q & 2 == 0 { (s, c) } else { (-s, -c) }
+/// `sin(x)`.
+#[inline(always)]
+pub fn sin(x: f64) -> f64 {
+    if !reducible(x) {
+        return x.sin();
     }
+    sin_cos_reduced(x).0
+}
 
-    /// # Safety
-    /// The CPU must have FMA.
-    #[target_feature(enable = "fma")]
-    pub(super) unsafe fn sin(x: f64) -> f64 {
-        if !reducible(x) {
-            return x.sin();
-        }
-        sin_cos_reduced(x).0
+/// `cos(x)`.
+#[inline(always)]
+pub fn cos(x: f64) -> f64 {
+    if !reducible(x) {
+        return x.cos();
     }
+    sin_cos_reduced(x).1
+}
 
-    /// # Safety
-    /// The CPU must have FMA.
-    #[target_feature(enable = "fma")]
-    pub(super) unsafe fn cos(x: f64) -> f64 {
-        if !reducible(x) {
-            return x.cos();
-        }
-        sin_cos_reduced(x).1
+/// `(sin(x), cos(x))`.
+#[inline(always)]
+pub fn sin_cos(x: f64) -> (f64, f64) {
+    if !reducible(x) {
+        return x.sin_cos();
     }
+    sin_cos_reduced(x)
+}
 
-    /// # Safety
-    /// The CPU must have FMA.
-    #[target_feature(enable = "fma")]
-    pub(super) unsafe fn sin_cos(x: f64) -> (f64, f64) {
-        if !reducible(x) {
-            return x.sin_cos();
-        }
-        sin_cos_reduced(x)
-    }
+/// `atan(t)` for `|t| ≤ 7/16`, as `t − t·P(t²)`; returned as the correction
+/// `t·P(t²)` so a caller can add a constant in two parts before it.
+#[inline(always)]
+fn atan_correction(t: f64) -> f64 {
+    let z = t * t;
+    let w = z * z;
+    let w2 = w * w;
+    let w4 = w2 * w2;
+    // fdlibm's even/odd split, each half by pairs.
+    let s1 = z
+        * (AT[2].mul_add(w, AT[0]) + w2 * AT[6].mul_add(w, AT[4]) + w4 * AT[10].mul_add(w, AT[8]));
+    let s2 = w * (AT[3].mul_add(w, AT[1]) + w2 * AT[7].mul_add(w, AT[5]) + w4 * AT[9]);
+    t * (s1 + s2)
+}
 
-    /// `atan(t)` for `|t| ≤ 7/16`, as `t − t·P(t²)`; returned as the correction
-    /// `t·P(t²)` so a caller can add a constant in two parts before it.
-    #[inline(always)]
-    fn atan_correction(t: f64) -> f64 {
-        let z = t * t;
-        let w = z * z;
-        let w2 = w * w;
-        let w4 = w2 * w2;
-        // fdlibm's even/odd split, each half by pairs.
-        let s1 = z
-            * (AT[2].mul_add(w, AT[0])
-                + w2 * AT[6].mul_add(w, AT[4])
-                + w4 * AT[10].mul_add(w, AT[8]));
-        let s2 = w * (AT[3].mul_add(w, AT[1]) + w2 * AT[7].mul_add(w, AT[5]) + w4 * AT[9]);
-        t * (s1 + s2)
+/// `atan2(y, x)` (C's argument order: the angle of the point `(x, y)`).
+#[inline(always)]
+pub fn atan2(y: f64, x: f64) -> f64 {
+    let (u, v) = (x.abs(), y.abs());
+    // Zeros, infinities, NaN and magnitudes near the ends of the range: C's answer.
+    let finite = u < 1e300 && v < 1e300;
+    let normal = (u > 1e-300 && (v > 1e-300 || v == 0.0)) || (u == 0.0 && v > 1e-300);
+    if !(finite && normal) {
+        return y.atan2(x);
     }
-
-    /// # Safety
-    /// The CPU must have FMA.
-    #[target_feature(enable = "fma")]
-    pub(super) unsafe fn atan2(y: f64, x: f64) -> f64 {
-        let (u, v) = (x.abs(), y.abs());
-        // Zeros, infinities, NaN and magnitudes near the ends of the range: C's answer.
-        let finite = u < 1e300 && v < 1e300;
-        let normal = (u > 1e-300 && (v > 1e-300 || v == 0.0)) || (u == 0.0 && v > 1e-300);
-        if !(finite && normal) {
-            return y.atan2(x);
-        }
-        // The angle of (u, v) in [0, π/2] as base + atan(num/den), |num/den| ≤ tan(π/8).
-        let (num, den, base) = if v <= TAN_PI_8 * u {
-            (v, u, [0.0, 0.0])
-        } else if v <= TAN_3PI_8 * u {
-            (v - u, v + u, PIO4)
-        } else {
-            (-u, v, [PIO2[0], PIO2[1]])
-        };
-        let t = num / den;
-        let a = base[0] - ((atan_correction(t) - base[1]) - t);
-        let a = if x.is_sign_negative() {
-            (PI[0] - a) + PI[1]
-        } else {
-            a
-        };
-        a.copysign(y)
-    }
+    // The angle of (u, v) in [0, π/2] as base + atan(num/den), |num/den| ≤ tan(π/8).
+    let (num, den, base) = if v <= TAN_PI_8 * u {
+        (v, u, [0.0, 0.0])
+    } else if v <= TAN_3PI_8 * u {
+        (v - u, v + u, PIO4)
+    } else {
+        (-u, v, [PIO2[0], PIO2[1]])
+    };
+    let t = num / den;
+    let a = base[0] - ((atan_correction(t) - base[1]) - t);
+    let a = if x.is_sign_negative() {
+        (PI[0] - a) + PI[1]
+    } else {
+        a
+    };
+    a.copysign(y)
 }
 
 #[cfg(test)]
@@ -298,12 +234,7 @@ mod tests {
                 worst = (e, x);
             }
         }
-        eprintln!(
-            "{name}: worst {} ulp at {:e} (FMA bodies: {})",
-            worst.0,
-            worst.1,
-            has_fma()
-        );
+        eprintln!("{name}: worst {} ulp at {:e}", worst.0, worst.1);
         assert!(
             worst.0 <= 2.0,
             "{name}: {} ulp from the standard library at x = {:e}",
@@ -373,11 +304,8 @@ mod tests {
             }
         }
         eprintln!(
-            "atan2: worst {} ulp at ({:e}, {:e}) (FMA bodies: {})",
-            worst.0,
-            worst.1,
-            worst.2,
-            has_fma()
+            "atan2: worst {} ulp at ({:e}, {:e})",
+            worst.0, worst.1, worst.2
         );
         assert!(
             worst.0 <= 2.0,
@@ -422,6 +350,55 @@ mod tests {
                     b.is_sign_negative(),
                     "atan2({y}, {x}) sign"
                 );
+            }
+        }
+    }
+
+    /// Every function on every argument, as the bits of `[sin, cos, sin_cos.0, sin_cos.1,
+    /// atan2(x, next x)]`.
+    #[inline(always)]
+    fn all(xs: &[f64]) -> Vec<[u64; 5]> {
+        xs.iter()
+            .zip(xs.iter().cycle().skip(1))
+            .map(|(&x, &y)| {
+                let (s, c) = sin_cos(x);
+                [sin(x), cos(x), s, c, atan2(x, y)].map(f64::to_bits)
+            })
+            .collect()
+    }
+
+    #[inline(never)]
+    fn all_portable(xs: &[f64]) -> Vec<[u64; 5]> {
+        all(xs)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2")]
+    fn all_fma(xs: &[f64]) -> Vec<[u64; 5]> {
+        all(xs)
+    }
+
+    /// The portable copy (each `mul_add` a call to the runtime's `fma`) and the FMA copy
+    /// (each one instruction) give the same bits: what makes flame renders the same on
+    /// every CPU and in both copies of the loops.
+    #[test]
+    #[cfg_attr(
+        not(target_arch = "x86_64"),
+        ignore = "the FMA copy exists on x86-64 only"
+    )]
+    fn portable_and_fma_copies_agree_bit_for_bit() {
+        let xs = arguments(4);
+        let portable = all_portable(&xs);
+        #[cfg(target_arch = "x86_64")]
+        {
+            assert!(
+                crate::isa::Isa::Fma.is_available(),
+                "this x86-64 CPU has no FMA: the FMA copy cannot be checked"
+            );
+            // SAFETY: the CPU has AVX2, FMA and BMI1/2 (asserted just above).
+            let fma = unsafe { all_fma(&xs) };
+            for (i, (a, b)) in portable.iter().zip(&fma).enumerate() {
+                assert_eq!(a, b, "argument {:e}", xs[i]);
             }
         }
     }

@@ -1,4 +1,5 @@
-//! Framing: the window of the plane an image shows.
+//! The view: which window of the plane an image shows ([`Window`]), fitted to the
+//! attractor or given, and zoomed.
 //!
 //! The papers centre the attractor's bounding box and scale it so its longest side spans
 //! 75% of the frame (12.5% margin each side, the "25% padding"); evaluation crops that
@@ -9,7 +10,7 @@ use serde::{Deserialize, Serialize};
 use crate::chaos::{ChaosGame, Points};
 use crate::error::{Error, Result};
 use crate::model::affine::Map2;
-use crate::model::code::Framing;
+use crate::model::code::Window;
 
 /// Fraction of the frame the attractor's longest side spans when fitted.
 pub const FIT_FILL: f64 = 0.75;
@@ -33,7 +34,7 @@ pub enum View {
     #[default]
     Fit,
     /// A fixed window.
-    Window(Framing),
+    Window(Window),
 }
 
 /// A window with the aspect of a `width × height` image, centred on the box `lo..hi`,
@@ -44,7 +45,7 @@ pub fn fit_window(
     width: u32,
     height: u32,
     fill: f64,
-) -> Result<Framing> {
+) -> Result<Window> {
     if !(fill > 0.0 && fill <= 1.0) {
         return Err(Error::param(
             "fill",
@@ -68,14 +69,14 @@ pub fn fit_window(
         unit = 1.0 / w.max(h);
     }
     let c = [0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])];
-    Ok(Framing {
+    Ok(Window {
         min: [c[0] - 0.5 * w * unit, c[1] - 0.5 * h * unit],
         max: [c[0] + 0.5 * w * unit, c[1] + 0.5 * h * unit],
     })
 }
 
 /// The window `base` zoomed by `zoom`.
-pub fn zoom_window(base: &Framing, zoom: &Zoom) -> Result<Framing> {
+pub fn zoom_window(base: &Window, zoom: &Zoom) -> Result<Window> {
     if !(zoom.factor.is_finite() && zoom.factor > 0.0) {
         return Err(Error::param(
             "zoom",
@@ -107,14 +108,14 @@ pub fn zoom_window(base: &Framing, zoom: &Zoom) -> Result<Framing> {
             ),
         ));
     }
-    Ok(Framing {
+    Ok(Window {
         min: [c[0] - half[0], c[1] - half[1]],
         max: [c[0] + half[0], c[1] + half[1]],
     })
 }
 
 /// The bounding box of the attractor from a pilot chaos-game run (256 × 1000 steps,
-/// 100 dropped), seeded so the framing is reproducible.
+/// 100 dropped), seeded so the fitted window is reproducible.
 ///
 /// Extreme points of an attractor are often fixed points of single maps or of short
 /// compositions (the corners of the Sierpiński triangle are), which a random orbit reaches
