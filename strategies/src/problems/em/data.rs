@@ -424,6 +424,42 @@ fn npy_header(bytes: &[u8]) -> std::result::Result<&[u8], String> {
         .ok_or_else(short)
 }
 
+/// Refuses a header whose `shape` asks for more values than the file has bytes (or more
+/// than a `u64` counts) before the header parser multiplies them out: its product
+/// overflowed inside `npyz` and panicked (a fuzz finding). A header without a readable
+/// `shape` is left to `npyz`'s own error.
+fn npy_shape_fits(header: &[u8], file_len: usize) -> std::result::Result<(), String> {
+    let text = String::from_utf8_lossy(header);
+    let Some(at) = text.find("'shape'").or_else(|| text.find("\"shape\"")) else {
+        return Ok(());
+    };
+    let rest = &text[at..];
+    let (Some(open), Some(close)) = (rest.find('('), rest.find(')')) else {
+        return Ok(());
+    };
+    if close < open {
+        return Ok(());
+    }
+    let mut values: u64 = 1;
+    for entry in rest[open + 1..close].split(',') {
+        let entry = entry.trim();
+        if entry.is_empty() {
+            continue;
+        }
+        let n: u64 = entry.parse().map_err(|_| {
+            format!("the .npy header's shape entry `{entry}` is not a whole number a file can hold")
+        })?;
+        values = values.saturating_mul(n);
+    }
+    if values > file_len as u64 {
+        return Err(format!(
+            "the .npy header's shape ({}) asks for {values} values, more than the file's {file_len} bytes hold",
+            rest[open + 1..close].trim()
+        ));
+    }
+    Ok(())
+}
+
 /// Parses a `.npy` buffer (any format version `npyz` reads); `origin` names the file in errors.
 pub fn parse_npy(bytes: &[u8], origin: &Path) -> Result<PointSet> {
     use npyz::{DType, Order, TypeChar};
@@ -453,6 +489,7 @@ pub fn parse_npy(bytes: &[u8], origin: &Path) -> Result<PointSet> {
             _ => {}
         }
     }
+    npy_shape_fits(header, bytes.len()).map_err(&bad)?;
     let file =
         npyz::NpyFile::new(bytes).map_err(|e| bad(format!("cannot read the .npy header: {e}")))?;
     let shape: Vec<usize> = file.shape().iter().map(|&d| d as usize).collect();
@@ -545,6 +582,40 @@ mod tests {
         let p = parse_text(t, Path::new("t.csv")).unwrap();
         assert_eq!(p.dim(), 2);
         assert_eq!(p.as_slice(), &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0]);
+    }
+
+    #[test]
+    fn a_shape_larger_than_the_file_is_refused_not_multiplied_out() {
+        let npy = |shape: &str| {
+            let mut header =
+                format!("{{'descr': '<f8', 'fortran_order': False, 'shape': {shape}, }}");
+            while (10 + header.len() + 1) % 64 != 0 {
+                header.push(' ');
+            }
+            header.push('\n');
+            let mut b = b"\x93NUMPY\x01\x00".to_vec();
+            b.extend_from_slice(&(header.len() as u16).to_le_bytes());
+            b.extend_from_slice(header.as_bytes());
+            b.extend_from_slice(&[0u8; 48]);
+            b
+        };
+        for shape in [
+            "(4294967296, 4294967296)",
+            "(18446744073709551615, 3)",
+            "(99999999999999999999999,)",
+            "(1000, 2)",
+        ] {
+            let err = parse_npy(&npy(shape), Path::new("big.npy"))
+                .unwrap_err()
+                .to_string();
+            assert!(
+                err.contains("big.npy") && err.contains("shape"),
+                "{shape}: {err}"
+            );
+        }
+        // A shape the data holds still reads.
+        let ok = parse_npy(&npy("(3, 2)"), Path::new("ok.npy")).unwrap();
+        assert_eq!(ok.len(), 3);
     }
 
     #[test]
