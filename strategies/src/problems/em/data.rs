@@ -453,7 +453,7 @@ fn npy_shape_fits(header: &[u8], file_len: usize) -> std::result::Result<(), Str
     }
     if values > file_len as u64 {
         return Err(format!(
-            "the .npy header's shape ({}) asks for {values} values, more than the file's {file_len} bytes hold",
+            "data is truncated: the .npy header's shape ({}) asks for {values} values, more than the file's {file_len} bytes hold",
             rest[open + 1..close].trim()
         ));
     }
