@@ -360,7 +360,7 @@ fn refine_cover(field: &Field, maps: &mut [PixelMap], rounds: usize, scales: (f6
         };
         // Where each copy's points land, bucketed by pixel (CSR).
         let mut start = vec![0u32; s * s + 1];
-        let mut placed: Vec<(usize, usize, usize)> = Vec::with_capacity(k * src.len());
+        let mut placed: Vec<(usize, u32, u32, Vector2<f64>)> = Vec::with_capacity(k * src.len());
         for (i, m) in maps.iter().enumerate() {
             for (j, x) in src.iter().enumerate() {
                 let q = m.apply(x);
@@ -375,7 +375,7 @@ fn refine_cover(field: &Field, maps: &mut [PixelMap], rounds: usize, scales: (f6
                 if u >= 0.0 && v >= 0.0 && (u as usize) < s && (v as usize) < s {
                     let cell = v as usize * s + u as usize;
                     start[cell + 1] += 1;
-                    placed.push((cell, i, j));
+                    placed.push((cell, i as u32, j as u32, q));
                 }
             }
         }
@@ -383,9 +383,11 @@ fn refine_cover(field: &Field, maps: &mut [PixelMap], rounds: usize, scales: (f6
             start[c + 1] += start[c];
         }
         let mut fill = start.clone();
-        let mut slots = vec![(0u32, 0u32); placed.len()];
-        for &(cell, i, j) in &placed {
-            slots[fill[cell] as usize] = (i as u32, j as u32);
+        // Each slot keeps the copied point with its map and source, so the search below
+        // does not map the source again.
+        let mut slots = vec![(0u32, 0u32, Vector2::zeros()); placed.len()];
+        for &(cell, i, j, q) in &placed {
+            slots[fill[cell] as usize] = (i, j, q);
             fill[cell] += 1;
         }
         // Coverage: each ink pixel pulls the closest copied point (searched ring by ring).
@@ -398,15 +400,18 @@ fn refine_cover(field: &Field, maps: &mut [PixelMap], rounds: usize, scales: (f6
                 {
                     break;
                 }
+                // The cells of the square ring at Chebyshev distance r.
+                let edge = (cx - r)..=(cx + r);
+                let sides = [cx - r, cx + r];
                 for v in (cy - r)..=(cy + r) {
-                    for u in (cx - r)..=(cx + r) {
-                        let ring = (v - cy).abs() == r || (u - cx).abs() == r;
-                        if !ring || u < 0 || v < 0 || u >= s as i64 || v >= s as i64 {
-                            continue;
-                        }
+                    let full = (v - cy).abs() == r;
+                    let us = edge.clone().filter(|u| full || sides.contains(u));
+                    for u in
+                        us.filter(|&u| (0..s as i64).contains(&u) && (0..s as i64).contains(&v))
+                    {
                         let cell = v as usize * s + u as usize;
-                        for &(i, j) in &slots[start[cell] as usize..start[cell + 1] as usize] {
-                            let d2 = (maps[i as usize].apply(&src[j as usize]) - y).norm_squared();
+                        for &(i, j, q) in &slots[start[cell] as usize..start[cell + 1] as usize] {
+                            let d2 = (q - y).norm_squared();
                             if best.is_none_or(|(b, _, _)| d2 < b) {
                                 best = Some((d2, i, j));
                             }
