@@ -6,6 +6,8 @@
 //! so that the compiler turns it into vector instructions; libm's `exp`, one call at a
 //! time, took a quarter of an iteration.
 
+use crate::isa::{Isa, IsaLevel};
+
 /// The 3×3 footprint of a sample at screen position `u`: its centre pixel and the
 /// separable weights `e^{−2(u − p)²}` per axis.
 #[derive(Clone, Copy)]
@@ -20,11 +22,11 @@ pub(super) struct Footprint {
 }
 
 /// The footprint of a sample at screen position `u` on a `size²` image, or `None` when no
-/// cell of it can fall on the image (also for NaN). `AVX` picks the AVX2+FMA exponential
-/// ([`exp_lanes_avx2`]; the same bits as [`exp_lanes`]): it must only be `true` inside
-/// code compiled with those features, on a CPU that has them.
+/// cell of it can fall on the image (also for NaN). The instruction set's token `_isa`
+/// picks the AVX2+FMA exponential ([`exp_lanes_avx2`]; the same bits as [`exp_lanes`]) where
+/// it is [`FmaIsa`](crate::isa::FmaIsa), which exists only on a CPU that has them.
 #[inline(always)]
-pub(super) fn footprint<const AVX: bool>(u: [f64; 2], size: usize) -> Option<Footprint> {
+pub(super) fn footprint<I: IsaLevel>(_isa: I, u: [f64; 2], size: usize) -> Option<Footprint> {
     let hi = size as f64 + 1.0;
     if !(u[0] > -2.0 && u[1] > -2.0 && u[0] < hi && u[1] < hi) {
         return None;
@@ -38,10 +40,10 @@ pub(super) fn footprint<const AVX: bool>(u: [f64; 2], size: usize) -> Option<Foo
     let dy = [fy + 1.0, fy, fy - 1.0];
     // e^{−2(f ± 1)²} = e^{−2f²}·e^{∓4f}·e^{−2}: four exponentials, one vector.
     let arg = [-2.0 * fx * fx, -2.0 * fy * fy, 4.0 * fx, 4.0 * fy];
-    let e = if AVX {
+    let e = if matches!(I::ISA, Isa::Fma) {
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: `AVX` is true only in the loops compiled with AVX2 and FMA, which run
-        // after `Isa::detect` found both.
+        // SAFETY: `I` is `FmaIsa`, whose values exist only after the CPU was found to have
+        // AVX2 and FMA.
         unsafe {
             exp4_lanes_avx2(arg)
         }
@@ -98,9 +100,10 @@ impl Footprint {
     /// The splat of one sample, `b += wx·wy·cw` over the footprint's cells (`cw` = the four
     /// colour sums and the weight sum), computed as `wy·(wx·cw)` with a fused multiply–add
     /// into the buffer. Inside the image each footprint row is one run of 16 lanes: four
-    /// vector operations when `AVX` (the same operations lane by lane: the same bits).
+    /// vector operations with the [`FmaIsa`](crate::isa::FmaIsa) token (the same operations
+    /// lane by lane: the same bits).
     #[inline(always)]
-    pub fn splat<const AVX: bool>(&self, size: usize, buf: &mut [[f64; 5]], cw: &[f64; 5]) {
+    pub fn splat<I: IsaLevel>(&self, _isa: I, size: usize, buf: &mut [[f64; 5]], cw: &[f64; 5]) {
         let Some(top) = self.run_start(size) else {
             self.cells(size, |ii, jj, px| {
                 let b = &mut buf[px];
@@ -112,9 +115,9 @@ impl Footprint {
         };
         let flat = buf.as_flattened_mut();
         #[cfg(target_arch = "x86_64")]
-        if AVX {
-            // SAFETY: `AVX` is true only in code compiled with AVX2 and FMA, run after
-            // `Isa::detect` found both; `run_start` keeps the three runs inside `flat`.
+        if matches!(I::ISA, Isa::Fma) {
+            // SAFETY: `I` is `FmaIsa` (the CPU has AVX2 and FMA, as for `footprint`);
+            // `run_start` keeps the three runs inside `flat`.
             unsafe { splat_runs_avx2(self, top, size, flat, cw) };
             return;
         }
@@ -131,8 +134,9 @@ impl Footprint {
     /// `Σ wx·wy·adj` per channel and the gradient of `Σ wx·wy·(adj·cw)` in the screen
     /// position (`∂wt/∂u = −4·d·wt` per axis).
     #[inline(always)]
-    pub fn gather<const AVX: bool>(
+    pub fn gather<I: IsaLevel>(
         &self,
+        _isa: I,
         size: usize,
         adj: &[[f64; 5]],
         cw: &[f64; 5],
@@ -142,7 +146,7 @@ impl Footprint {
             Some(top) => {
                 let flat = adj.as_flattened();
                 #[cfg(target_arch = "x86_64")]
-                if AVX {
+                if matches!(I::ISA, Isa::Fma) {
                     // SAFETY: as in `splat`; the runs lie inside `flat`.
                     return unsafe { gather_runs_avx2(self, top, size, flat, cw) };
                 }
@@ -451,11 +455,12 @@ fn exp4_avx2(v: std::arch::x86_64::__m256d) -> std::arch::x86_64::__m256d {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::isa::PortableIsa;
 
     #[test]
     fn footprint_centre_is_the_nearest_pixel() {
         for u in [-1.4, -0.6, -0.4, 0.0, 0.49, 0.51, 7.3, 99.5] {
-            let fp = footprint::<false>([u, u], 200).unwrap();
+            let fp = footprint(PortableIsa, [u, u], 200).unwrap();
             assert_eq!(fp.cx as f64, (u + 0.5).floor(), "u = {u}");
             for k in 0..3 {
                 let d = u - (fp.cx + k as i64 - 1) as f64;
@@ -505,9 +510,9 @@ mod tests {
             [-1.2, 4.0],
             [4.0, 9.6],
         ] {
-            let fp = footprint::<false>(u, size).unwrap();
+            let fp = footprint(PortableIsa, u, size).unwrap();
             let mut buf = vec![[0.0; 5]; size * size];
-            fp.splat::<false>(size, &mut buf, &cw);
+            fp.splat(PortableIsa, size, &mut buf, &cw);
             let mut want = vec![[0.0; 5]; size * size];
             let (mut sums, mut gu) = ([0.0; 5], [0.0; 2]);
             naive(&fp, size, |px, wt, dx, dy| {
@@ -525,7 +530,7 @@ mod tests {
                     assert!((b[k] - w[k]).abs() < 1e-14, "splat at {u:?}");
                 }
             }
-            let (s, g) = fp.gather::<false>(size, &adj, &cw);
+            let (s, g) = fp.gather(PortableIsa, size, &adj, &cw);
             for k in 0..5 {
                 assert!((s[k] - sums[k]).abs() < 1e-13, "gather at {u:?}");
             }
@@ -540,18 +545,18 @@ mod tests {
     fn avx2_exponential_gives_the_portable_bits() {
         // On a CPU without AVX2+FMA only the portable half can be checked (against libm);
         // with them, the vector path must give the portable bits.
-        let avx = crate::isa::Isa::Fma.is_available();
+        let avx = crate::isa::FmaIsa::detect();
         for i in 0..40_000 {
             let x: [f64; 4] = std::array::from_fn(|k| -9.0 + (i * 4 + k) as f64 * 7.3e-5);
             let portable = exp_lanes(x);
             for (p, x) in portable.iter().zip(x) {
                 assert!((p - x.exp()).abs() <= 3.0 * f64::EPSILON * x.exp(), "{x}");
             }
-            if avx {
+            if let Some(isa) = avx {
                 // SAFETY: the CPU has AVX2 and FMA (checked above).
                 let v = unsafe { exp4_lanes_avx2(x) };
                 assert_eq!(v.map(f64::to_bits), portable.map(f64::to_bits), "{x:?}");
-                assert!(footprint::<true>([x[0] + 50.0, x[1] + 50.0], 100).is_some());
+                assert!(footprint(isa, [x[0] + 50.0, x[1] + 50.0], 100).is_some());
             }
         }
     }

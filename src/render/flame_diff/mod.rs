@@ -248,19 +248,8 @@ fn splat_layer(p: &Prepared, order: &[u8], cfg: &DiffFlameConfig, isa: Isa) -> L
             (Isa::Fma, None) => unsafe {
                 splat_chunk_fma(p, p.gens.as_slice(), order, cfg, t0, t1, st)
             },
-            (_, Some(lin)) => {
-                splat_chunk::<false, _, _>(PortableIsa, p, lin, order, cfg, t0, t1, st)
-            }
-            (_, None) => splat_chunk::<false, _, _>(
-                PortableIsa,
-                p,
-                p.gens.as_slice(),
-                order,
-                cfg,
-                t0,
-                t1,
-                st,
-            ),
+            (_, Some(lin)) => splat_chunk(PortableIsa, p, lin, order, cfg, t0, t1, st),
+            (_, None) => splat_chunk(PortableIsa, p, p.gens.as_slice(), order, cfg, t0, t1, st),
         })
         .collect();
     let mut it = parts.into_iter();
@@ -301,14 +290,14 @@ fn splat_chunk_fma<M: Maps + ?Sized>(
 ) -> Vec<[f64; 5]> {
     // SAFETY: this copy runs only where `Isa::checked` found AVX2, FMA and BMI1/2.
     let isa = unsafe { FmaIsa::new_unchecked() };
-    splat_chunk::<true, M, _>(isa, p, maps, order, cfg, t0, t1, states)
+    splat_chunk(isa, p, maps, order, cfg, t0, t1, states)
 }
 
 /// Trajectories `t0..t1` splatted into a buffer of their own (generators applied on
 /// instruction set `I`).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn splat_chunk<const AVX: bool, M: Maps + ?Sized, I: IsaLevel>(
+fn splat_chunk<M: Maps + ?Sized, I: IsaLevel>(
     isa: I,
     p: &Prepared,
     maps: &M,
@@ -322,11 +311,11 @@ fn splat_chunk<const AVX: bool, M: Maps + ?Sized, I: IsaLevel>(
     let mut buf = vec![[0.0f64; 5]; npix];
     let mut t = t0;
     while t + SPLAT_LANES <= t1 {
-        splat_group::<AVX, M, I, SPLAT_LANES>(isa, p, maps, order, cfg, t, t0, states, &mut buf);
+        splat_group::<M, I, SPLAT_LANES>(isa, p, maps, order, cfg, t, t0, states, &mut buf);
         t += SPLAT_LANES;
     }
     while t < t1 {
-        splat_group::<AVX, M, I, 1>(isa, p, maps, order, cfg, t, t0, states, &mut buf);
+        splat_group::<M, I, 1>(isa, p, maps, order, cfg, t, t0, states, &mut buf);
         t += 1;
     }
     buf
@@ -340,7 +329,7 @@ const SPLAT_LANES: usize = 8;
 /// side by side.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn splat_group<const AVX: bool, M: Maps + ?Sized, I: IsaLevel, const L: usize>(
+fn splat_group<M: Maps + ?Sized, I: IsaLevel, const L: usize>(
     isa: I,
     p: &Prepared,
     maps: &M,
@@ -381,11 +370,11 @@ fn splat_group<const AVX: bool, M: Maps + ?Sized, I: IsaLevel, const L: usize>(
             continue;
         }
         for l in 0..L {
-            let Some(fp) = footprint::<AVX>(to_screen(&p.fin, s[l], half), cfg.size) else {
+            let Some(fp) = footprint(isa, to_screen(&p.fin, s[l], half), cfg.size) else {
                 continue;
             };
             let cw = [c[l][0], c[l][1], c[l][2], c[l][3], w[l]];
-            fp.splat::<AVX>(cfg.size, buf, &cw);
+            fp.splat(isa, cfg.size, buf, &cw);
         }
     }
 }
@@ -670,10 +659,8 @@ fn backward_layer(
             #[cfg(target_arch = "x86_64")]
             // SAFETY: as above.
             (Isa::Fma, None) => unsafe { backward_chunk_fma(&pass, p.gens.as_slice(), t0, t1) },
-            (_, Some(lin)) => backward_chunk::<false, _, _>(PortableIsa, &pass, lin, t0, t1),
-            (_, None) => {
-                backward_chunk::<false, _, _>(PortableIsa, &pass, p.gens.as_slice(), t0, t1)
-            }
+            (_, Some(lin)) => backward_chunk(PortableIsa, &pass, lin, t0, t1),
+            (_, None) => backward_chunk(PortableIsa, &pass, p.gens.as_slice(), t0, t1),
         })
         .collect();
     let mut it = parts.into_iter();
@@ -720,12 +707,12 @@ fn backward_chunk_fma<M: Maps + ?Sized>(
 ) -> Vec<f64> {
     // SAFETY: this copy runs only where `Isa::checked` found AVX2, FMA and BMI1/2.
     let isa = unsafe { FmaIsa::new_unchecked() };
-    backward_chunk::<true, M, _>(isa, pass, maps, t0, t1)
+    backward_chunk(isa, pass, maps, t0, t1)
 }
 
 /// The θ gradient of trajectories `t0..t1`.
 #[inline(always)]
-fn backward_chunk<const AVX: bool, M: Maps + ?Sized, I: IsaLevel>(
+fn backward_chunk<M: Maps + ?Sized, I: IsaLevel>(
     isa: I,
     pass: &LayerPass<'_>,
     maps: &M,
@@ -746,7 +733,7 @@ fn backward_chunk<const AVX: bool, M: Maps + ?Sized, I: IsaLevel>(
     // The trajectory's tape, one cache line per step.
     let mut tape = vec![Step::default(); cfg.steps];
     for t in t0..t1 {
-        backward_trajectory::<AVX, M, I>(isa, pass, maps, t, &mut tape, &mut acc);
+        backward_trajectory::<M, I>(isa, pass, maps, t, &mut tape, &mut acc);
     }
     let mut grad = acc.grad;
     grad[lay.kappa_at] += acc.kappa * (p.kappa - 1.0);
@@ -780,7 +767,7 @@ struct Sums {
 /// forward pass, measured slower here: 37 ms per iteration with one, 39 with two, 41 with
 /// four.)
 #[inline(always)]
-fn backward_trajectory<const AVX: bool, M: Maps + ?Sized, I: IsaLevel>(
+fn backward_trajectory<M: Maps + ?Sized, I: IsaLevel>(
     isa: I,
     pass: &LayerPass<'_>,
     maps: &M,
@@ -844,10 +831,10 @@ fn backward_trajectory<const AVX: bool, M: Maps + ?Sized, I: IsaLevel>(
         let prev = &tape[j - 1];
         let s = step.s;
         if j > cfg.warmup
-            && let Some(fp) = footprint::<AVX>(to_screen(&p.fin, s, half), cfg.size)
+            && let Some(fp) = footprint(isa, to_screen(&p.fin, s, half), cfg.size)
         {
             let cw = [step.c[0], step.c[1], step.c[2], step.c[3], step.w];
-            let (sums, gu) = fp.gather::<AVX>(cfg.size, adj, &cw);
+            let (sums, gu) = fp.gather(isa, cfg.size, adj, &cw);
             for k in 0..4 {
                 lam_c[k] += sums[k];
             }
