@@ -8,7 +8,7 @@ use std::borrow::Cow;
 use candle_core::{Device, Tensor};
 use ifslab::chaos::mix_seed;
 use ifslab::loss::{ImageLoss, LossBreakdown, LossConfig, MsMse, Objective};
-use ifslab::render::splat::SplatConfig;
+use ifslab::render::splat::{SplatConfig, SplatDevice};
 
 use crate::driver::{Differentiable, Evaluation};
 use crate::error::{Error, Result};
@@ -229,14 +229,17 @@ impl Differentiable for ImageProblem {
 impl Anneal for ImageProblem {
     fn anneal_cost(&self, theta: &[f64], stream: u64, frac: f64) -> Result<f64> {
         // With the splat on the GPU, the render is scored there and only the scalar comes
-        // back; otherwise the render comes down and is scored here.
-        if let Some(v) = self.model.render_msmse(
-            theta,
-            &self.splat_at(frac),
-            mix_seed(self.seed, stream),
-            &self.draw_options(theta)?,
-            &self.objective,
-        )? {
+        // back; otherwise the render comes down and is scored here (the CPU's candidates do
+        // not decode θ for the GPU's attempt first).
+        if self.splat.device == SplatDevice::Cuda
+            && let Some(v) = self.model.render_msmse(
+                theta,
+                &self.splat_at(frac),
+                mix_seed(self.seed, stream),
+                &self.draw_options(theta)?,
+                &self.objective,
+            )?
+        {
             return Ok(v);
         }
         let pred = self.render_at(theta, stream, frac)?;
