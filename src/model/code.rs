@@ -111,6 +111,7 @@ pub struct Window {
 }
 
 /// [`Window`]'s former name (a code file's `framing` is a window).
+#[deprecated(note = "renamed `Window`")]
 pub type Framing = Window;
 
 impl Window {

@@ -29,6 +29,7 @@ pub mod segment;
 pub mod similitude;
 
 pub use affine::{Affine2, AffineN, Map2};
+#[allow(deprecated)] // the former name, kept for code written against it
 pub use code::{Framing, IfsCode, Window};
 pub use diff_map::{AffinePart, DiffMap2, Similitude2};
 pub use param::{Naive, ParamKind, Parameterisation, Svd};

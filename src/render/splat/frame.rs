@@ -32,6 +32,7 @@ pub enum SplatView {
 }
 
 /// [`SplatView`]'s former name.
+#[deprecated(note = "renamed `SplatView`")]
 pub type SplatFraming = SplatView;
 
 impl Default for SplatView {

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use ifslab::chaos::ChaosGame;
 use ifslab::loss::LossConfig;
 use ifslab::model::ParamKind;
-use ifslab::render::splat::{Blend, SplatConfig, SplatDevice, SplatFraming};
+use ifslab::render::splat::{Blend, SplatConfig, SplatDevice, SplatView};
 use serde::{Deserialize, Serialize};
 
 use crate::driver::Params;
@@ -545,11 +545,11 @@ impl InversionConfig {
             alpha_max: r.alpha_max,
             game: self.game(),
             framing: match r.window {
-                Some([x0, y0, x1, y1]) => SplatFraming::Window(ifslab::model::Framing {
+                Some([x0, y0, x1, y1]) => SplatView::Window(ifslab::model::Window {
                     min: [x0, y0],
                     max: [x1, y1],
                 }),
-                None => SplatFraming::default(),
+                None => SplatView::default(),
             },
             device: r.device,
         }
