@@ -18,16 +18,22 @@
 //! - [`sdf`]: the differentiable SDF rasteriser of segment-map IFSs (distance to the
 //!   nearest primitive of every word up to depth K, tiled branch-and-bound over the word
 //!   tree, reverse pass to the control points).
+//!
+//! The three differentiable renderers — [`splat::Splat`], [`sdf::SdfRenderer`],
+//! [`flame_diff::FlameRenderer`] — implement one trait, [`Renderer`] (scene and sampling
+//! state → image, `∂L/∂image` → `∂L/∂θ`; [`renderer`]).
 
 pub mod flame;
 pub mod flame_diff;
 pub mod image_io;
 pub mod raster;
+pub mod renderer;
 pub mod sdf;
 pub mod splat;
 pub mod view;
 
 pub use raster::{Raster, RenderConfig, RenderMode, RenderStats, render, render_with_isa};
+pub use renderer::{Draws, Planes, Renderer, value_and_grad};
 /// [`view`]'s former name.
 #[doc(hidden)]
 pub use view as framing;

@@ -36,6 +36,7 @@
 
 mod footprint;
 mod generator;
+mod renderer;
 
 use rand::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
@@ -48,6 +49,7 @@ use crate::model::flame::learnable::{Background, FlameStack, LearnableFlame, log
 use crate::model::flame::xform::is_bad_value;
 use footprint::{footprint, to_screen};
 use generator::{Generator, LinearMaps, Maps};
+pub use renderer::FlameRenderer;
 
 /// The sampling and image settings of the op.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

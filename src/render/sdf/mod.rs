@@ -22,7 +22,9 @@
 
 pub mod primitive;
 pub mod raster;
+mod renderer;
 pub mod words;
 
 pub use raster::{NONE, SdfRaster, SdfRenderConfig, SdfStats, SdfView, TILE, intensity};
+pub use renderer::SdfRenderer;
 pub use words::{MAX_PRIMITIVES, WordTree};

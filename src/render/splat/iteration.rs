@@ -10,9 +10,11 @@
 //!   where it lies ([`cuda::fused`]). The points go up and their gradients come down through
 //!   page-locked buffers; besides them only the loss's sums cross the bus. The chaos game,
 //!   the framing and the scan back through the trajectories stay on the CPU.
-//! - **Through candle** otherwise ([`objective_and_grad_candle`]): the [`SplatOp`] renders
-//!   (on the GPU when `device = "cuda"`, its image coming down and its gradient going up),
-//!   the objective is a candle graph on the CPU, and autograd runs the op's reverse pass.
+//! - **Through candle** otherwise ([`objective_and_grad_candle`]): the splat as a
+//!   [`Renderer`] ([`Splat`]) renders (on the GPU when `device = "cuda"`, its image coming
+//!   down and its gradient going up), the objective is a candle graph on the CPU whose
+//!   autograd stops at the image, and the renderer's reverse pass takes its gradient from
+//!   there — the same numbers as the [`SplatOp`](super::SplatOp) inside the graph.
 //!   This is the route with LPIPS.
 //!
 //! Both routes render the maps with their parameters rounded to f32 (the candle op's argument
@@ -24,14 +26,15 @@
 //!
 //! [`cuda::fused`]: super::cuda::fused
 
-use candle_core::{DType, Device, Tensor, Var};
+use candle_core::{Device, Tensor, Var};
 
 #[cfg(feature = "cuda")]
 use super::cuda;
-use super::{SplatConfig, SplatDevice, SplatOp};
+use super::{Splat, SplatConfig, SplatDevice};
 use crate::error::Result;
 use crate::loss::{LossBreakdown, Objective};
-use crate::model::diff_map::{AffinePart, DiffMap2, flat_params};
+use crate::model::diff_map::{AffinePart, DiffMap2};
+use crate::render::renderer::Renderer;
 
 /// Whether [`objective_and_grad`] takes the fused GPU route for this renderer, objective and
 /// clamping: `Ok(())`, or why not (the candle route is taken instead).
@@ -77,8 +80,11 @@ pub fn objective_and_grad<M: AffinePart + 'static>(
     objective_and_grad_candle(cfg, maps, probs, clamp, seed, objective)
 }
 
-/// [`objective_and_grad`] through candle whatever the device: the splat op (on `cfg.device`),
-/// the objective as a candle graph, autograd.
+/// [`objective_and_grad`] through candle whatever the device: the splat as a [`Renderer`]
+/// (on `cfg.device`) of the maps rounded to f32, the objective as a candle graph on its
+/// image, autograd to the image, the renderer's reverse pass, its gradient rounded to f32 —
+/// what the [`SplatOp`](super::SplatOp) on an f32 tensor of the parameters computes, bit
+/// for bit.
 pub fn objective_and_grad_candle<M: AffinePart + 'static>(
     cfg: &SplatConfig,
     maps: &[M],
@@ -87,20 +93,45 @@ pub fn objective_and_grad_candle<M: AffinePart + 'static>(
     seed: u64,
     objective: &Objective,
 ) -> Result<(LossBreakdown, Vec<f64>)> {
-    let var =
-        Var::from_tensor(&Tensor::new(flat_params(maps), &Device::Cpu)?.to_dtype(DType::F32)?)?;
-    let mut op = SplatOp::with_maps(cfg.clone(), seed, maps.to_vec());
-    if let Some(p) = probs {
-        op = op.with_probabilities(p.to_vec());
-    }
-    let mut pred = var.as_tensor().apply_op1(op)?;
+    let splat = Splat::<M, f32>::new(cfg.clone()).with_probabilities(probs.map(<[f64]>::to_vec));
+    objective_through::<M>(&splat, &through_f32(maps), maps, &seed, clamp, objective)
+}
+
+/// The objective's terms for `renderer`'s image of `rounded` and their gradient with
+/// respect to the maps' parameters: the image terms through `rounded` (rounded to f32 on
+/// the way, as a candle op's f32 argument would be), the regulariser's on `maps`.
+fn objective_through<M: AffinePart>(
+    renderer: &Splat<M, f32>,
+    rounded: &[M],
+    maps: &[M],
+    sampling: &u64,
+    clamp: bool,
+    objective: &Objective,
+) -> Result<(LossBreakdown, Vec<f64>)> {
+    let (image, tape) = renderer.forward(rounded, sampling)?;
+    let planes = renderer.planes();
+    let var = Var::from_tensor(&Tensor::from_vec(
+        image,
+        (planes.height, planes.width),
+        &Device::Cpu,
+    )?)?;
+    let mut pred = var.as_tensor().clone();
     if clamp {
         pred = pred.clamp(0f32, 1f32)?;
     }
     let ev = objective.evaluate_params(&pred, maps)?;
     let grads = ev.image_total.backward()?;
     let mut g: Vec<f64> = match grads.get(var.as_tensor()) {
-        Some(g) => g.to_dtype(DType::F64)?.to_vec1()?,
+        Some(gi) => {
+            let gi: Vec<f32> = gi.flatten_all()?.to_vec1()?;
+            // Rounded to f32 and added to a zero gradient, as candle accumulates an f32
+            // argument's gradient (−0 becomes +0).
+            renderer
+                .backward(rounded, sampling, &tape, &gi)?
+                .into_iter()
+                .map(|v| (0.0f32 + v as f32) as f64)
+                .collect()
+        }
         None => vec![0.0; ev.param_grad.len()],
     };
     for (a, r) in g.iter_mut().zip(&ev.param_grad) {
@@ -141,7 +172,6 @@ pub fn render_msmse<M: DiffMap2>(
 }
 
 /// The maps with their parameters rounded to f32, as the candle op sees them.
-#[cfg_attr(not(feature = "cuda"), allow(dead_code))]
 fn through_f32<M: DiffMap2>(maps: &[M]) -> Vec<M> {
     maps.iter()
         .map(|m| {
@@ -250,6 +280,9 @@ mod tests {
     use crate::chaos::ChaosGame;
     use crate::loss::LossConfig;
     use crate::model::Affine2;
+    use crate::model::diff_map::flat_params;
+    use crate::render::splat::SplatOp;
+    use candle_core::DType;
 
     fn setup() -> (SplatConfig, Vec<Affine2>, Objective) {
         let cfg = SplatConfig {
@@ -287,23 +320,44 @@ mod tests {
     }
 
     /// On the CPU the one call is the composition callers wrote before it: the op on an f32
-    /// tensor of the parameters, the objective, autograd, the regulariser's gradient added.
+    /// tensor of the parameters, the objective, autograd, the regulariser's gradient added —
+    /// bit for bit, with and without clamping and map probabilities.
     #[test]
     fn the_candle_route_is_the_op_and_the_objective_composed() {
         let (cfg, maps, objective) = setup();
-        let (b, g) = objective_and_grad(&cfg, &maps, None, false, 5, &objective).unwrap();
+        for (clamp, probs) in [
+            (false, None),
+            (true, None),
+            (false, Some(vec![0.5, 0.3, 0.2])),
+        ] {
+            composed_as_the_op(&cfg, &maps, &objective, clamp, probs);
+        }
+    }
+
+    fn composed_as_the_op(
+        cfg: &SplatConfig,
+        maps: &[Affine2],
+        objective: &Objective,
+        clamp: bool,
+        probs: Option<Vec<f64>>,
+    ) {
+        let (b, g) = objective_and_grad(cfg, maps, probs.as_deref(), clamp, 5, objective).unwrap();
         let var = Var::from_tensor(
-            &Tensor::new(flat_params(&maps), &Device::Cpu)
+            &Tensor::new(flat_params(maps), &Device::Cpu)
                 .unwrap()
                 .to_dtype(DType::F32)
                 .unwrap(),
         )
         .unwrap();
-        let pred = var
-            .as_tensor()
-            .apply_op1(SplatOp::with_maps(cfg.clone(), 5, maps.clone()))
-            .unwrap();
-        let ev = objective.evaluate_params(&pred, &maps).unwrap();
+        let mut op = SplatOp::with_maps(cfg.clone(), 5, maps.to_vec());
+        if let Some(p) = probs {
+            op = op.with_probabilities(p);
+        }
+        let mut pred = var.as_tensor().apply_op1(op).unwrap();
+        if clamp {
+            pred = pred.clamp(0f32, 1f32).unwrap();
+        }
+        let ev = objective.evaluate_params(&pred, maps).unwrap();
         let grads = ev.image_total.backward().unwrap();
         let mut want: Vec<f64> = grads
             .get(var.as_tensor())
@@ -316,7 +370,9 @@ mod tests {
             *a += r;
         }
         assert_eq!(b, ev.breakdown);
-        assert_eq!(g, want);
+        // Bit for bit, the sign of zero included.
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&g), bits(&want), "clamp {clamp}");
         assert!(g.iter().any(|v| *v != 0.0));
     }
 

@@ -52,6 +52,7 @@ pub mod cuda;
 pub mod frame;
 pub mod iteration;
 pub mod kernel;
+mod renderer;
 pub mod trajectories;
 
 use serde::{Deserialize, Serialize};
@@ -61,6 +62,7 @@ pub use candle_op::{SplatOp, maps_from_tensor, maps_to_tensor, params_to_tensor}
 pub use frame::{FrameState, SplatFraming, SplatView};
 pub use iteration::{gpu_route, objective_and_grad, objective_and_grad_candle, render_msmse};
 pub use kernel::{Blend, SplatGrid, SplatReal, SplatState, release_buffers};
+pub use renderer::Splat;
 pub use trajectories::TrajectoryTape;
 
 use crate::budget::MemoryEstimate;
