@@ -4,9 +4,8 @@
 use std::sync::{Arc, Mutex};
 
 use ifslab::model::flame::learnable::{Background, FlameStack};
-use ifslab::render::flame_diff::{
-    DiffFlameConfig, FlameFrame, GeneratorOrder, backward, forward, mse,
-};
+use ifslab::render::flame_diff::{DiffFlameConfig, FlameFrame, FlameRenderer, GeneratorOrder, mse};
+use ifslab::render::{Renderer, value_and_grad};
 
 use crate::driver::{Differentiable, Evaluation};
 use crate::error::{Error, Result};
@@ -20,7 +19,7 @@ pub const FLAME_TERMS: [&str; 2] = ["mse", "dssim"];
 #[derive(Debug)]
 pub struct FlameProblem {
     stack: FlameStack,
-    cfg: DiffFlameConfig,
+    renderer: FlameRenderer,
     /// Three planes, `size × size`, row 0 at the top.
     target: Vec<f32>,
     seed: u64,
@@ -75,7 +74,7 @@ impl FlameProblem {
         }
         Ok(FlameProblem {
             stack,
-            cfg,
+            renderer: FlameRenderer { cfg },
             target,
             seed,
             redraw_every,
@@ -96,7 +95,7 @@ impl FlameProblem {
 
     /// The pipeline's settings.
     pub fn config(&self) -> &DiffFlameConfig {
-        &self.cfg
+        &self.renderer.cfg
     }
 
     /// The target.
@@ -113,12 +112,7 @@ impl FlameProblem {
         {
             return o.clone();
         }
-        let o = Arc::new(GeneratorOrder::draw(
-            &self.stack,
-            &self.cfg,
-            self.seed
-                .wrapping_add(epoch.wrapping_mul(0x2545_f491_4f6c_dd1d)),
-        ));
+        let o = Arc::new(self.renderer.sampling(&self.stack, self.seed, epoch));
         *slot = Some((epoch, o.clone()));
         o
     }
@@ -126,7 +120,9 @@ impl FlameProblem {
     /// The render at θ with the order of iteration `iter`.
     pub fn render(&self, theta: &[f64], iter: u64) -> Result<FlameFrame> {
         let stack = self.stack_at(theta)?;
-        Ok(forward(&stack, &self.cfg, &self.order_at(iter))?)
+        let (image, mut frame) = self.renderer.forward(&stack, &self.order_at(iter))?;
+        frame.image = image;
+        Ok(frame)
     }
 
     /// The MSE at θ with the order of iteration `iter`.
@@ -163,14 +159,15 @@ impl FlameProblem {
         let mut dssim = 0.0;
         if w.dssim > 0.0 {
             use ifslab::loss::{DSsim, ImageLoss};
-            let n = self.cfg.size * self.cfg.size;
+            let size = self.renderer.cfg.size;
+            let n = size * size;
             let t64: Vec<f64> = self.target.iter().map(|&v| v as f64).collect();
             for ch in 0..3 {
                 let (v, g) = DSsim::default().value_and_grad::<f64>(
                     &image[ch * n..(ch + 1) * n],
                     &t64[ch * n..(ch + 1) * n],
-                    self.cfg.size,
-                    self.cfg.size,
+                    size,
+                    size,
                 )?;
                 dssim += v / 3.0;
                 for (a, b) in grad[ch * n..(ch + 1) * n].iter_mut().zip(&g) {
@@ -186,10 +183,11 @@ impl FlameProblem {
 impl Differentiable for FlameProblem {
     fn evaluate(&self, theta: &[f64], iter: u64) -> Result<Evaluation> {
         let stack = self.stack_at(theta)?;
-        let order = self.order_at(iter);
-        let frame = forward(&stack, &self.cfg, &order)?;
-        let (loss, g, [m, d]) = self.objective(&frame.image)?;
-        let grad = backward(&stack, &self.cfg, &order, &frame, &g)?;
+        let ((loss, [m, d]), grad) =
+            value_and_grad(&self.renderer, &stack, &self.order_at(iter), |image| {
+                let (loss, g, terms) = self.objective(image)?;
+                Ok::<_, Error>(((loss, terms), g))
+            })?;
         Ok(Evaluation {
             loss,
             grad,

@@ -17,7 +17,8 @@ use candle_core::Tensor;
 use ifslab::loss::{LossBreakdown, Objective};
 use ifslab::model::diff_map::{AffinePart, Similitude2};
 use ifslab::model::{Affine2, Parameterisation};
-use ifslab::render::splat::{self, SplatConfig};
+use ifslab::render::Renderer;
+use ifslab::render::splat::{self, Splat, SplatConfig};
 
 use ifslab::model::ParamKind;
 use serde::{Deserialize, Serialize};
@@ -163,8 +164,9 @@ impl<M: ImageModel> AnyModel for M {
         draw: &DrawOptions,
     ) -> Result<Vec<f32>> {
         let maps = self.decode(theta)?;
-        let mut img =
-            splat::forward_with_probabilities::<f32>(splat, &maps, draw.probs.as_deref(), seed)?.0;
+        let renderer =
+            Splat::<M::Map, f32>::new(splat.clone()).with_probabilities(draw.probs.clone());
+        let mut img = renderer.forward(&maps, &seed)?.0;
         if draw.clamp {
             img.iter_mut().for_each(|v| *v = v.min(1.0));
         }

@@ -11,7 +11,8 @@
 
 use ifslab::loss::{ImageLoss, MsMse};
 use ifslab::model::segment::Pattern;
-use ifslab::render::sdf::{SdfRaster, SdfRenderConfig, SdfView};
+use ifslab::render::Renderer;
+use ifslab::render::sdf::{SdfRenderConfig, SdfRenderer, SdfView};
 use serde::{Deserialize, Serialize};
 
 use crate::driver::{Differentiable, Evaluation};
@@ -300,7 +301,25 @@ impl SdfProblem {
     /// The rendered image at θ (with the final σ).
     pub fn image(&self, theta: &[f64]) -> Result<Vec<f64>> {
         let p = self.pattern_at(theta)?;
-        Ok(SdfRaster::render(&p, &self.view, &self.render)?.image(self.sigma))
+        Ok(SdfRenderer::new(self.view, self.render, self.sigma)
+            .forward(&p, &())?
+            .0)
+    }
+
+    /// The renderer of an evaluation with lines of width `sigma`: the intensity plane when
+    /// the loss has a pixel term, the distance plane when it has a distance term, the
+    /// cut-off (without a distance term) at [`CUTOFF_SIGMAS`]·σ.
+    pub fn renderer(&self, sigma: f64) -> SdfRenderer {
+        SdfRenderer {
+            view: self.view,
+            cfg: SdfRenderConfig {
+                cutoff: self.render.cutoff.map(|_| CUTOFF_SIGMAS * sigma),
+                ..self.render
+            },
+            sigma,
+            intensity: self.loss.pixel > 0.0,
+            distance: self.target_dist.is_some(),
+        }
     }
 
     /// Loss terms at θ with the final σ, and the gradient when `grad`.
@@ -320,14 +339,17 @@ impl SdfProblem {
             Some(l) => l.soft_pattern(theta, tau, self.loss.scale_barrier > 0.0)?,
             None => self.pattern.with_flat_points(theta)?,
         };
-        let render = SdfRenderConfig {
-            cutoff: self.render.cutoff.map(|_| CUTOFF_SIGMAS * sigma),
-            ..self.render
-        };
-        let r = SdfRaster::render(&p, &self.view, &render)?;
+        let renderer = self.renderer(sigma);
+        let (planes, raster) = renderer.forward(&p, &())?;
         let (w, h) = (self.view.width, self.view.height);
         let mse = MsMse::new(self.loss.levels);
-        let mut g_dist = vec![0.0; w * h];
+        // ∂L/∂planes: the intensity plane's, then the distance plane's.
+        let mut g_planes = if grad {
+            vec![0.0; planes.len()]
+        } else {
+            Vec::new()
+        };
+        let (img, d) = planes.split_at(if renderer.intensity { w * h } else { 0 });
         let mut out = SdfEval {
             loss: 0.0,
             pixel: 0.0,
@@ -336,25 +358,24 @@ impl SdfProblem {
             scale_barrier: 0.0,
             grad: None,
         };
-        if self.loss.pixel > 0.0 {
-            let img = r.image(sigma);
-            let (v, g) = mse.value_and_grad::<f64>(&img, &self.target, w, h)?;
+        if renderer.intensity {
+            let (v, g) = mse.value_and_grad::<f64>(img, &self.target, w, h)?;
             out.pixel = v;
             out.loss += self.loss.pixel * v;
             if grad {
-                let g: Vec<f64> = g.iter().map(|x| x * self.loss.pixel).collect();
-                g_dist = r.image_backward(sigma, &g);
+                for (a, x) in g_planes.iter_mut().zip(&g) {
+                    *a = x * self.loss.pixel;
+                }
             }
         }
         if let Some(td) = &self.target_dist {
-            let side = w.max(h) as f64;
-            let d: Vec<f64> = r.distances().iter().map(|x| x / side).collect();
-            let (v, g) = mse.value_and_grad::<f64>(&d, td, w, h)?;
+            let (v, g) = mse.value_and_grad::<f64>(d, td, w, h)?;
             out.distance = v;
             out.loss += self.loss.distance * v;
             if grad {
-                for (gd, x) in g_dist.iter_mut().zip(&g) {
-                    *gd += self.loss.distance * x / side;
+                let at = g_planes.len() - w * h;
+                for (a, x) in g_planes[at..].iter_mut().zip(&g) {
+                    *a = self.loss.distance * x;
                 }
             }
         }
@@ -379,7 +400,7 @@ impl SdfProblem {
             )));
         }
         if grad {
-            let mut g = r.backward(&p, &g_dist)?;
+            let mut g = renderer.backward(&p, &(), &raster, &g_planes)?;
             if let Some(gc) = g_cross {
                 for (x, c) in g.iter_mut().zip(gc) {
                     *x += self.loss.crossing * c;

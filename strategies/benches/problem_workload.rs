@@ -1,0 +1,170 @@
+//! A fixed workload for comparing two builds by instruction count: one `evaluate` (loss and
+//! gradient) of each differentiable problem, the way the driver calls it — the image
+//! problem (affine maps under the SVD parameterisation, splat at the demo setting: 96², 4×,
+//! σ = 1, 1000 × 110 trajectories, MS-MSE + D-SSIM, f32), the SDF problem (Koch at depth 3,
+//! 256², σ = 1.5, the default loss with its 6σ cut-off) and the flame problem (8 generators
+//! with trigonometric variations, 100², 200 × 200 samples, the authors' MSE).
+//!
+//! ```sh
+//! cargo bench -p ifslab-strategies --bench problem_workload --no-run   # prints the path
+//! RAYON_NUM_THREADS=1 valgrind --tool=cachegrind --cache-sim=no \
+//!     target/release/deps/problem_workload-<hash> sdf 3
+//! ```
+//!
+//! Stages `setup`, `image`, `sdf`, `flame`, each run N times after the setup; the per-call
+//! cost is the difference between runs with N and N + k calls, divided by k (BENCHMARKS.md
+//! §10).
+
+use std::hint::black_box;
+
+use ifslab::chaos::ChaosGame;
+use ifslab::loss::LossConfig;
+use ifslab::model::flame::VariationKind as V;
+use ifslab::model::flame::learnable::{
+    Background, FlameStack, Learn, LearnableFlame, LearnableInit,
+};
+use ifslab::model::param::Parameterisation;
+use ifslab::model::random::sample_code;
+use ifslab::model::segment::{SegmentMap, builtin};
+use ifslab::model::{Affine2, Svd};
+use ifslab::render::flame_diff::DiffFlameConfig;
+use ifslab::render::sdf::{SdfRaster, SdfRenderConfig, SdfView};
+use ifslab::render::splat::{self, Blend, SplatConfig};
+use ifslab_strategies::driver::Differentiable;
+use ifslab_strategies::problems::flame::{FlameLoss, FlameProblem, Rates};
+use ifslab_strategies::problems::image::{AffineModel, ImageProblem};
+use ifslab_strategies::problems::sdf::{SdfLossConfig, SdfProblem};
+
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
+fn main() {
+    let args: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with("--"))
+        .collect();
+    let (stage, calls) = match args.as_slice() {
+        [s, n] => (
+            s.clone(),
+            n.parse::<usize>().expect("calls: a whole number"),
+        ),
+        [] => ("setup".to_string(), 0),
+        _ => panic!("usage: problem_workload <setup|image|sdf|flame> <calls>"),
+    };
+    let (problem, theta): (Box<dyn Differentiable>, Vec<f64>) = match stage.as_str() {
+        "image" | "setup" => image(),
+        "sdf" => sdf(),
+        "flame" => flame(),
+        s => panic!("unknown stage {s}"),
+    };
+    let mut sink = 0.0f64;
+    if stage != "setup" {
+        for call in 0..calls {
+            sink += problem
+                .evaluate(&theta, call as u64)
+                .expect("evaluate")
+                .loss;
+        }
+    }
+    eprintln!("{stage} × {calls} [{}]", black_box(sink));
+}
+
+fn image() -> (Box<dyn Differentiable>, Vec<f64>) {
+    let cfg = SplatConfig {
+        width: 96,
+        height: 96,
+        supersample: 4,
+        sigma: 1.0,
+        blend: Blend::Coverage,
+        game: ChaosGame {
+            trajectories: 1000,
+            length: 110,
+            ..ChaosGame::default()
+        },
+        ..SplatConfig::default()
+    };
+    let code = sample_code(10, 3).expect("a valid sampler setting");
+    let scaled: Vec<Affine2> = code
+        .maps
+        .iter()
+        .map(|m| Affine2 {
+            m: m.m,
+            b: m.b * 0.9,
+        })
+        .collect();
+    let p = Svd::default();
+    let (target, _) = splat::forward::<f32>(&cfg, &code.maps, 99).expect("forward");
+    let theta = p.encode(&scaled).expect("encodable maps");
+    let loss = LossConfig {
+        lpips_weight: 0.0,
+        ..LossConfig::default()
+    };
+    let problem = ImageProblem::new(Box::new(AffineModel(Box::new(p))), cfg, loss, target, 7)
+        .expect("a problem");
+    (Box::new(problem), theta)
+}
+
+fn sdf() -> (Box<dyn Differentiable>, Vec<f64>) {
+    const SIDE: usize = 256;
+    const SIGMA: f64 = 1.5;
+    let koch_at = |to: [[f64; 2]; 2]| {
+        let m = SegmentMap::between([0.0, 0.0], [1.0, 0.0], to[0], to[1]).expect("a map");
+        builtin("koch")
+            .expect("koch")
+            .transformed(&m)
+            .expect("a pattern")
+    };
+    let view = SdfView::unit_square(SIDE);
+    let truth = koch_at([[0.15, 0.4], [0.85, 0.4]]);
+    let current = koch_at([[0.16, 0.41], [0.84, 0.38]]);
+    let cfg = SdfRenderConfig {
+        depth: 3,
+        cutoff: Some(6.0 * SIGMA),
+    };
+    let target = SdfRaster::render(&truth, &view, &cfg)
+        .expect("render")
+        .image(SIGMA);
+    let theta = current.flat_points();
+    let problem = SdfProblem::new(current, target, view, 3, SIGMA, SdfLossConfig::default())
+        .expect("a problem");
+    (Box::new(problem), theta)
+}
+
+fn flame() -> (Box<dyn Differentiable>, Vec<f64>) {
+    let vars = [
+        vec![V::Spherical],
+        vec![V::Handkerchief],
+        vec![V::Swirl],
+        vec![V::Polar],
+        vec![V::Disc],
+        vec![V::Sinusoidal],
+        vec![V::Linear, V::Exponential],
+        vec![V::Linear],
+    ];
+    let layer = LearnableFlame::random(&vars, Learn::default(), &LearnableInit::default(), 7)
+        .expect("a random flame");
+    let st = FlameStack {
+        layers: vec![layer],
+        background: Background::Fixed([1.0; 3]),
+    };
+    let cfg = DiffFlameConfig {
+        trajectories: 200,
+        steps: 200,
+        ..DiffFlameConfig::default()
+    };
+    let target: Vec<f32> = (0..3 * cfg.size * cfg.size)
+        .map(|i| ((i * 7919) % 101) as f32 / 100.0)
+        .collect();
+    let theta = st.params();
+    let problem = FlameProblem::new(
+        st,
+        cfg,
+        target,
+        5,
+        1,
+        &Rates::default(),
+        FlameLoss::default(),
+    )
+    .expect("a problem");
+    (Box::new(problem), theta)
+}
