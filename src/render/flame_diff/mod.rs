@@ -30,6 +30,9 @@
 //! compiled twice, portable and AVX2+FMA, chosen at run time ([`forward_with_isa`] picks
 //! one), with the same operations in both: the same bits.
 //!
+//! [`FlameRenderer`] is the pipeline as a [`Renderer`](crate::render::Renderer): a stack to
+//! three RGB planes, the generator order its sampling state, drawn once per run.
+//!
 //! Determinism: trajectories are processed in a fixed number of contiguous chunks
 //! ([`DiffFlameConfig::chunks`]), each into its own buffer, and chunk results are summed in
 //! chunk order, so images and gradients are bit-identical for any thread count.

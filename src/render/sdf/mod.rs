@@ -7,7 +7,9 @@
 //!   gradients with respect to the points;
 //! - [`words`]: the word tree (composed maps, leaf primitives, bottom-up bounding disks) and
 //!   its chain rule;
-//! - [`raster`]: the tiled branch-and-bound forward pass, the image, the reverse pass.
+//! - [`raster`]: the tiled branch-and-bound forward pass, the image, the reverse pass;
+//! - [`SdfRenderer`]: the raster as a [`Renderer`](crate::render::Renderer) (a pattern to its
+//!   intensity and/or distance planes, deterministic).
 //!
 //! The paper evaluates every pixel against every primitive (a pixels × primitives tensor,
 //! its depth limited by GPU memory); here each tile walks the word tree as a bounding-volume

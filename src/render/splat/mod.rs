@@ -42,6 +42,8 @@
 //! tensors stay on the CPU. [`iteration`] is one step of image inversion in one call —
 //! render, the objective, `∂/∂θ` — through that op, or, on the GPU with a loss the GPU
 //! computes (MS-MSE, D-SSIM), with the image and its gradient never leaving the GPU.
+//! [`Splat`] is the fused op as a [`Renderer`](crate::render::Renderer): maps to a grey
+//! plane, a fresh chaos-game seed every call.
 //!
 //! ## References
 //! - Djeacoumar et al., *Learning Image Fractals Using Chaotic Differentiable Point Splatting*.
