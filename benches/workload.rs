@@ -26,19 +26,16 @@ use std::hint::black_box;
 use candle_core::{DType, Device, Tensor, Var};
 use ifslab::chaos::ChaosGame;
 use ifslab::loss::{ImageLoss, LossConfig, MsMse, Objective};
-use ifslab::model::flame::VariationKind as V;
-use ifslab::model::flame::learnable::{
-    Background, FlameStack, Learn, LearnableFlame, LearnableInit,
-};
 use ifslab::model::flame::read_flames;
 use ifslab::model::param::Parameterisation;
 use ifslab::model::random::sample_code;
-use ifslab::model::segment::{SegmentMap, builtin};
 use ifslab::model::{Affine2, Svd};
 use ifslab::render::flame::{FlameRenderConfig, render_flame};
-use ifslab::render::flame_diff::{self, DiffFlameConfig, GeneratorOrder};
-use ifslab::render::sdf::{SdfRaster, SdfRenderConfig, SdfView};
+use ifslab::render::flame_diff::{self, GeneratorOrder};
+use ifslab::render::sdf::SdfRaster;
 use ifslab::render::splat::{self, Blend, SplatConfig, SplatOp, maps_from_tensor, maps_to_tensor};
+
+include!("common/fixtures.rs");
 
 #[global_allocator]
 static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
@@ -202,30 +199,7 @@ fn flame(stage: &str, calls: usize) {
 /// One gradient step of a learnable flame: 8 generators (spherical, handkerchief, swirl,
 /// polar, disc, sinusoidal, julia-free trigonometric ones) at 100², 200 × 200 samples.
 fn flame_learn(calls: usize) {
-    let vars = [
-        vec![V::Spherical],
-        vec![V::Handkerchief],
-        vec![V::Swirl],
-        vec![V::Polar],
-        vec![V::Disc],
-        vec![V::Sinusoidal],
-        vec![V::Linear, V::Exponential],
-        vec![V::Linear],
-    ];
-    let layer = LearnableFlame::random(&vars, Learn::default(), &LearnableInit::default(), 7)
-        .expect("a random flame");
-    let st = FlameStack {
-        layers: vec![layer],
-        background: Background::Fixed([1.0; 3]),
-    };
-    let cfg = DiffFlameConfig {
-        trajectories: 200,
-        steps: 200,
-        ..DiffFlameConfig::default()
-    };
-    let target: Vec<f32> = (0..3 * cfg.size * cfg.size)
-        .map(|i| ((i * 7919) % 101) as f32 / 100.0)
-        .collect();
+    let (st, cfg, target) = learnable_flame_fixture();
     let start = std::time::Instant::now();
     let mut sink = 0usize;
     for call in 0..calls {
@@ -241,34 +215,23 @@ fn flame_learn(calls: usize) {
 
 /// One SDF fit iteration as `benches/sdf.rs` (Koch, depth 3, 256², cut-off 6σ).
 fn sdf(calls: usize) {
-    const SIDE: usize = 256;
-    const SIGMA: f64 = 1.5;
-    let koch_at = |to: [[f64; 2]; 2]| {
-        let m = SegmentMap::between([0.0, 0.0], [1.0, 0.0], to[0], to[1]).expect("a map");
-        builtin("koch")
-            .expect("koch")
-            .transformed(&m)
-            .expect("a pattern")
-    };
-    let view = SdfView::unit_square(SIDE);
-    let truth = koch_at([[0.15, 0.4], [0.85, 0.4]]);
-    let current = koch_at([[0.16, 0.41], [0.84, 0.38]]);
-    let cfg = SdfRenderConfig {
-        depth: 3,
-        cutoff: Some(6.0 * SIGMA),
-    };
-    let target = SdfRaster::render(&truth, &view, &cfg)
-        .expect("render")
-        .image(SIGMA);
+    let KochSdfFixture {
+        side,
+        sigma,
+        view,
+        cfg,
+        current,
+        target,
+    } = koch_sdf_fixture();
     let start = std::time::Instant::now();
     let mut sink = 0usize;
     for _ in 0..calls {
         let r = SdfRaster::render(&current, &view, &cfg).expect("render");
-        let img = r.image(SIGMA);
+        let img = r.image(sigma);
         let (_, g) = MsMse::new(4)
-            .value_and_grad::<f64>(&img, &target, SIDE, SIDE)
+            .value_and_grad::<f64>(&img, &target, side, side)
             .expect("loss");
-        let gd = r.image_backward(SIGMA, &g);
+        let gd = r.image_backward(sigma, &g);
         sink += r.backward(&current, &gd).expect("backward").len();
     }
     report("sdf", calls, start, sink);

@@ -19,21 +19,16 @@ use std::hint::black_box;
 
 use ifslab::chaos::ChaosGame;
 use ifslab::loss::LossConfig;
-use ifslab::model::flame::VariationKind as V;
-use ifslab::model::flame::learnable::{
-    Background, FlameStack, Learn, LearnableFlame, LearnableInit,
-};
 use ifslab::model::param::Parameterisation;
 use ifslab::model::random::sample_code;
-use ifslab::model::segment::{SegmentMap, builtin};
 use ifslab::model::{Affine2, Svd};
-use ifslab::render::flame_diff::DiffFlameConfig;
-use ifslab::render::sdf::{SdfRaster, SdfRenderConfig, SdfView};
 use ifslab::render::splat::{self, Blend, SplatConfig};
 use ifslab_strategies::driver::Differentiable;
 use ifslab_strategies::problems::flame::{FlameLoss, FlameProblem, Rates};
 use ifslab_strategies::problems::image::{AffineModel, ImageProblem};
 use ifslab_strategies::problems::sdf::{SdfLossConfig, SdfProblem};
+
+include!("../../benches/common/fixtures.rs");
 
 #[global_allocator]
 static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
@@ -105,56 +100,30 @@ fn image() -> (Box<dyn Differentiable>, Vec<f64>) {
 }
 
 fn sdf() -> (Box<dyn Differentiable>, Vec<f64>) {
-    const SIDE: usize = 256;
-    const SIGMA: f64 = 1.5;
-    let koch_at = |to: [[f64; 2]; 2]| {
-        let m = SegmentMap::between([0.0, 0.0], [1.0, 0.0], to[0], to[1]).expect("a map");
-        builtin("koch")
-            .expect("koch")
-            .transformed(&m)
-            .expect("a pattern")
-    };
-    let view = SdfView::unit_square(SIDE);
-    let truth = koch_at([[0.15, 0.4], [0.85, 0.4]]);
-    let current = koch_at([[0.16, 0.41], [0.84, 0.38]]);
-    let cfg = SdfRenderConfig {
-        depth: 3,
-        cutoff: Some(6.0 * SIGMA),
-    };
-    let target = SdfRaster::render(&truth, &view, &cfg)
-        .expect("render")
-        .image(SIGMA);
+    let KochSdfFixture {
+        side,
+        sigma,
+        view,
+        cfg,
+        current,
+        target,
+    } = koch_sdf_fixture();
+    assert_eq!(target.len(), side * side);
     let theta = current.flat_points();
-    let problem = SdfProblem::new(current, target, view, 3, SIGMA, SdfLossConfig::default())
-        .expect("a problem");
+    let problem = SdfProblem::new(
+        current,
+        target,
+        view,
+        cfg.depth,
+        sigma,
+        SdfLossConfig::default(),
+    )
+    .expect("a problem");
     (Box::new(problem), theta)
 }
 
 fn flame() -> (Box<dyn Differentiable>, Vec<f64>) {
-    let vars = [
-        vec![V::Spherical],
-        vec![V::Handkerchief],
-        vec![V::Swirl],
-        vec![V::Polar],
-        vec![V::Disc],
-        vec![V::Sinusoidal],
-        vec![V::Linear, V::Exponential],
-        vec![V::Linear],
-    ];
-    let layer = LearnableFlame::random(&vars, Learn::default(), &LearnableInit::default(), 7)
-        .expect("a random flame");
-    let st = FlameStack {
-        layers: vec![layer],
-        background: Background::Fixed([1.0; 3]),
-    };
-    let cfg = DiffFlameConfig {
-        trajectories: 200,
-        steps: 200,
-        ..DiffFlameConfig::default()
-    };
-    let target: Vec<f32> = (0..3 * cfg.size * cfg.size)
-        .map(|i| ((i * 7919) % 101) as f32 / 100.0)
-        .collect();
+    let (st, cfg, target) = learnable_flame_fixture();
     let theta = st.params();
     let problem = FlameProblem::new(
         st,
