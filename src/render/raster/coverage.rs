@@ -15,15 +15,28 @@ pub(crate) struct Coverage {
     tile_shift: u32,
 }
 
+/// Words per sub-pixel row and `log2` of the bits per tile of a `(width·s) × (height·s)`
+/// grid.
+fn layout(width: u32, height: u32, s: u32) -> (u64, u32) {
+    let row_words = (width as u64 * s as u64).div_ceil(64);
+    let cells = row_words * 64 * height as u64 * s as u64;
+    // Small buffers are one tile of at least a word.
+    let tile_shift = (TILE_BYTES as u64 * 8)
+        .trailing_zeros()
+        .min(cells.next_power_of_two().trailing_zeros())
+        .max(6);
+    (row_words, tile_shift)
+}
+
+/// Bytes of one tile of the buffer [`Coverage::new`] makes.
+pub(crate) fn tile_bytes(width: u32, height: u32, s: u32) -> u64 {
+    (1u64 << layout(width, height, s).1) / 8
+}
+
 impl Coverage {
     pub(crate) fn new(width: u32, height: u32, s: u32) -> Self {
-        let row_words = (width as u64 * s as u64).div_ceil(64);
+        let (row_words, tile_shift) = layout(width, height, s);
         let cells = row_words * 64 * height as u64 * s as u64;
-        // Small buffers are one tile of at least a word.
-        let tile_shift = (TILE_BYTES as u64 * 8)
-            .trailing_zeros()
-            .min(cells.next_power_of_two().trailing_zeros())
-            .max(6);
         let tiles = cells.div_ceil(1 << tile_shift);
         Coverage {
             bits: vec![0; (tiles << (tile_shift - 6)) as usize],
@@ -53,6 +66,7 @@ fn count_bits(bits: &[u64], start: u64, len: u64) -> u32 {
 }
 
 impl Accumulator for Coverage {
+    type Word = u64;
     const CELL_BITS: u32 = 1;
     const SUBPIXELS: bool = true;
 
@@ -64,23 +78,21 @@ impl Accumulator for Coverage {
         self.tile_shift
     }
 
-    fn tiles(&self) -> usize {
-        self.bits.len() >> (self.tile_shift - 6)
+    fn tile_words(&self) -> usize {
+        1 << (self.tile_shift - 6)
     }
 
-    fn write_tile(&mut self, tile: usize, offsets: &[u32]) {
-        let n = 1usize << (self.tile_shift - 6);
-        let words = &mut self.bits[tile * n..(tile + 1) * n];
+    fn words_mut(&mut self) -> &mut [u64] {
+        &mut self.bits
+    }
+
+    fn write_tile(words: &mut [u64], offsets: &[u32]) {
+        // A tile is a power of two of words: the mask keeps the offset's bits and the index
+        // in bounds.
+        let last = words.len() - 1;
         for &o in offsets {
-            words[(o >> 6) as usize] |= 1u64 << (o & 63);
+            words[(o >> 6) as usize & last] |= 1u64 << (o & 63);
         }
-    }
-
-    fn merge(&mut self, other: Self) {
-        self.bits
-            .par_chunks_mut(1 << 14)
-            .zip(other.bits.par_chunks(1 << 14))
-            .for_each(|(a, b)| a.iter_mut().zip(b).for_each(|(x, y)| *x |= y));
     }
 
     fn finish(self, width: u32, height: u32) -> Vec<f32> {

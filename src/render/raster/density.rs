@@ -13,12 +13,22 @@ pub(crate) struct Density {
     tile_shift: u32,
 }
 
+/// `log2` of the counts per tile of `pixels` counts.
+fn tile_shift(pixels: usize) -> u32 {
+    (TILE_BYTES / 4)
+        .trailing_zeros()
+        .min(pixels.next_power_of_two().trailing_zeros())
+}
+
+/// Bytes of one tile of the buffer [`Density::new`] makes.
+pub(crate) fn tile_bytes(width: u32, height: u32) -> u64 {
+    4u64 << tile_shift(width as usize * height as usize)
+}
+
 impl Density {
     pub(crate) fn new(width: u32, height: u32) -> Self {
         let pixels = width as usize * height as usize;
-        let tile_shift = (TILE_BYTES / 4)
-            .trailing_zeros()
-            .min(pixels.next_power_of_two().trailing_zeros());
+        let tile_shift = tile_shift(pixels);
         Density {
             counts: vec![0; pixels.div_ceil(1 << tile_shift) << tile_shift],
             width: width as u64,
@@ -29,6 +39,7 @@ impl Density {
 }
 
 impl Accumulator for Density {
+    type Word = u32;
     const CELL_BITS: u32 = 32;
     const SUBPIXELS: bool = false;
 
@@ -40,24 +51,21 @@ impl Accumulator for Density {
         self.tile_shift
     }
 
-    fn tiles(&self) -> usize {
-        self.counts.len() >> self.tile_shift
+    fn tile_words(&self) -> usize {
+        1 << self.tile_shift
     }
 
-    fn write_tile(&mut self, tile: usize, offsets: &[u32]) {
-        let n = 1usize << self.tile_shift;
-        let counts = &mut self.counts[tile * n..(tile + 1) * n];
+    fn words_mut(&mut self) -> &mut [u32] {
+        &mut self.counts
+    }
+
+    fn write_tile(counts: &mut [u32], offsets: &[u32]) {
+        // A tile is a power of two of counts: the mask keeps the offset's bits.
+        let last = counts.len() - 1;
         for &o in offsets {
-            let c = &mut counts[o as usize];
+            let c = &mut counts[o as usize & last];
             *c = c.saturating_add(1);
         }
-    }
-
-    fn merge(&mut self, other: Self) {
-        self.counts
-            .par_iter_mut()
-            .zip(other.counts.par_iter())
-            .for_each(|(a, b)| *a = a.saturating_add(*b));
     }
 
     fn finish(self, _width: u32, _height: u32) -> Vec<f32> {

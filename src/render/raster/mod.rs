@@ -9,14 +9,15 @@
 //! - [`RenderMode::Density`]: hit counts per pixel, log tone-mapped
 //!   (`log(1 + c) / log(1 + max c)`).
 //!
-//! Trajectories run in batches of four on whichever worker thread is free, each worker with
-//! its own buffer; the buffers are merged afterwards by OR (coverage) or sum (density). Both
-//! are order-independent, and every trajectory has its own seeded generator, so the image
-//! is bit-identical for any thread count and any schedule.
+//! Trajectories run in batches of four on whichever worker thread is free, all writing one
+//! buffer by OR (coverage) or saturating sum (density). Both are order-independent, and
+//! every trajectory has its own seeded generator, so the image is bit-identical for any
+//! thread count and any schedule.
 //!
-//! The buffers are far larger than the caches, so points are not written where they land:
-//! each is appended to the bin of its buffer tile, and a full bin is written into its tile
-//! while the tile is in L2 ([`bins`]). The trajectories run as a [`PointStream`], compiled
+//! The buffer is far larger than the caches, so points are not written where they land:
+//! each is appended to the bin of its buffer tile (each worker has its own bins), and a
+//! full bin is written into its tile, locked for the while, after the tile was read in
+//! order into the cache ([`bins`]). The trajectories run as a [`PointStream`], compiled
 //! for FMA where the CPU has it ([`Isa`]); neither changes a bit of the image.
 //!
 //! Zoom views generate points everywhere and keep those in the window; `min_hits` asks for
@@ -28,7 +29,7 @@ mod bins;
 mod coverage;
 mod density;
 
-use std::sync::{Mutex, MutexGuard};
+use std::sync::Mutex;
 use std::time::Instant;
 
 use rayon::prelude::*;
@@ -143,26 +144,36 @@ impl RenderConfig {
         Ok(())
     }
 
-    /// What the render's buffers take on `threads` worker threads: each thread's
-    /// accumulator (coverage bits of the supersampled grid, or a count per pixel) with its
-    /// tile bins (about half as much again), and the image's values and its PNG.
+    /// What the render's buffers take on `threads` worker threads: the accumulator
+    /// (coverage bits of the supersampled grid, or a count per pixel), each thread's tile
+    /// bins (half as much again per thread), and the image's values and its PNG.
     pub fn memory_estimate(&self, threads: usize) -> MemoryEstimate {
         let (w, h, s) = (
             self.width as u64,
             self.height as u64,
             self.supersample as u64,
         );
-        let per_thread = match self.mode {
-            RenderMode::Coverage => (w * s).div_ceil(64) * 8 * h * s,
-            RenderMode::Density => w * h * 4,
+        let (buffer, tile, label) = match self.mode {
+            RenderMode::Coverage => (
+                (w * s).div_ceil(64) * 8 * h * s,
+                coverage::tile_bytes(self.width, self.height, self.supersample),
+                "coverage bits",
+            ),
+            RenderMode::Density => (
+                w * h * 4,
+                density::tile_bytes(self.width, self.height),
+                "counts",
+            ),
         };
-        let per_thread = per_thread.saturating_add(per_thread / 2);
-        let label = match self.mode {
-            RenderMode::Coverage => format!("coverage bits and bins × {threads} threads"),
-            RenderMode::Density => format!("counts and bins × {threads} threads"),
-        };
+        // The buffer is padded to whole tiles.
+        let buffer = buffer.div_ceil(tile) * tile;
+        let bins = bins::bin_bytes(buffer, tile);
         MemoryEstimate::new()
-            .with(label, per_thread.saturating_mul(threads.max(1) as u64))
+            .with(label, buffer)
+            .with(
+                format!("tile bins × {threads} threads"),
+                bins.saturating_mul(threads.max(1) as u64),
+            )
             .with("image", w * h * 4)
             .with("PNG", w * h * 2)
     }
@@ -277,12 +288,12 @@ impl PixelMap {
 }
 
 /// Bins a stream's in-window points.
-struct BinSink<'a, A> {
+struct BinSink<'b, 't, 'a, A: Accumulator> {
     pm: PixelMap,
-    bins: bins::BinWriter<'a, A>,
+    bins: bins::BinWriter<'b, 't, 'a, A>,
 }
 
-impl<A: Accumulator> PointSink for BinSink<'_, A> {
+impl<A: Accumulator> PointSink for BinSink<'_, '_, '_, A> {
     #[inline(always)]
     fn put(&mut self, p: [f64; 2]) {
         let cell = if A::SUBPIXELS {
@@ -296,9 +307,11 @@ impl<A: Accumulator> PointSink for BinSink<'_, A> {
     }
 }
 
-/// Accumulates points of one thread's trajectories in a buffer of cells (bits or counts)
-/// cut into tiles of `2^tile_shift` contiguous cells.
+/// Accumulates points in a buffer of cells (bits or counts) cut into tiles of
+/// `2^tile_shift` contiguous cells, which every thread's bins write into.
 pub(crate) trait Accumulator: Send {
+    /// What the buffer is made of.
+    type Word: Send + Copy + Default + std::ops::BitOr<Output = Self::Word>;
     /// Whether cells are sub-pixels (else output pixels), row by row.
     const SUBPIXELS: bool;
     /// Bits per cell.
@@ -307,12 +320,12 @@ pub(crate) trait Accumulator: Send {
     fn row_cells(&self) -> u64;
     /// `log2` of the cells per tile.
     fn tile_shift(&self) -> u32;
-    /// Number of tiles (the buffer is padded to whole tiles).
-    fn tiles(&self) -> usize;
-    /// Records one point on each cell `tile · 2^tile_shift + offset`.
-    fn write_tile(&mut self, tile: usize, offsets: &[u32]);
-    /// Folds another accumulator of the same shape into this one.
-    fn merge(&mut self, other: Self);
+    /// Words per tile.
+    fn tile_words(&self) -> usize;
+    /// The buffer, padded to whole tiles.
+    fn words_mut(&mut self) -> &mut [Self::Word];
+    /// Records one point on each cell `offset mod 2^tile_shift` of a tile's words.
+    fn write_tile(tile: &mut [Self::Word], offsets: &[u32]);
     /// Final pixel values in [0, 1].
     fn finish(self, width: u32, height: u32) -> Vec<f32>;
 }
@@ -393,12 +406,22 @@ pub fn render_with_isa<M: Map2>(
     };
     let stream = PointStream::new(maps, &sampler, cfg.seed, 1.0, cfg.warmup)?.with_isa(isa)?;
     let (values, counts) = match cfg.mode {
-        RenderMode::Coverage => run_rounds(&stream, cfg, &window, progress, start, || {
-            coverage::Coverage::new(cfg.width, cfg.height, cfg.supersample)
-        })?,
-        RenderMode::Density => run_rounds(&stream, cfg, &window, progress, start, || {
-            density::Density::new(cfg.width, cfg.height)
-        })?,
+        RenderMode::Coverage => run_rounds(
+            &stream,
+            cfg,
+            &window,
+            progress,
+            start,
+            coverage::Coverage::new(cfg.width, cfg.height, cfg.supersample),
+        )?,
+        RenderMode::Density => run_rounds(
+            &stream,
+            cfg,
+            &window,
+            progress,
+            start,
+            density::Density::new(cfg.width, cfg.height),
+        )?,
     };
     Ok(Raster {
         width: cfg.width,
@@ -417,13 +440,13 @@ pub fn render_with_isa<M: Map2>(
 
 type RoundCounts = (u64, u64, u32, bool);
 
-fn run_rounds<M: Map2, A: Accumulator, F: Fn() -> A + Sync>(
+fn run_rounds<M: Map2, A: Accumulator>(
     stream: &PointStream<'_, M>,
     cfg: &RenderConfig,
     window: &Window,
     progress: Option<&dyn Progress>,
     start: Instant,
-    make: F,
+    mut acc: A,
 ) -> Result<(Vec<f32>, RoundCounts)> {
     let t = cfg.trajectories_per_round();
     let max_points = if cfg.max_points > 0 {
@@ -434,15 +457,22 @@ fn run_rounds<M: Map2, A: Accumulator, F: Fn() -> A + Sync>(
     if let Some(pb) = progress {
         pb.set_length(cfg.points);
     }
-    // One binned buffer per worker thread, kept across rounds. Workers take batches of
-    // trajectories as they become free (a busy machine does not leave one thread waiting
-    // for another); which buffer a trajectory lands in does not change the merged image.
+    let pm = PixelMap::new(
+        window,
+        cfg.width,
+        cfg.height,
+        cfg.supersample,
+        acc.row_cells(),
+    );
+    let tiles = bins::Tiles::new(&mut acc);
+    // One set of bins per worker thread, kept across rounds, all in front of the one
+    // buffer. Workers take batches of trajectories as they become free (a busy machine
+    // does not leave one thread waiting for another); which bins a trajectory lands in does
+    // not change the image.
     let threads = rayon::current_num_threads().max(1);
-    let accs: Vec<Mutex<bins::Binned<A>>> = (0..threads)
-        .map(|_| Mutex::new(bins::Binned::new(make())))
+    let bins: Vec<Mutex<bins::Bins<'_, '_, A>>> = (0..threads)
+        .map(|_| Mutex::new(bins::Bins::new(&tiles)))
         .collect();
-    let row = lock(&accs[0]).acc().row_cells();
-    let pm = PixelMap::new(window, cfg.width, cfg.height, cfg.supersample, row);
     let batches = t.div_ceil(LANES);
     let (mut generated, mut rounds, mut by_time) = (0u64, 0u32, false);
     let hits = loop {
@@ -453,10 +483,10 @@ fn run_rounds<M: Map2, A: Accumulator, F: Fn() -> A + Sync>(
                 let (lo, hi) = (b * LANES, ((b + 1) * LANES).min(t));
                 let ns: Vec<u64> = (lo..hi).map(|j| points_of(cfg.points, t, j)).collect();
                 let slot = rayon::current_thread_index().unwrap_or(0) % threads;
-                let mut acc = lock(&accs[slot]);
+                let mut own = bins::lock(&bins[slot]);
                 let mut sink = BinSink {
                     pm,
-                    bins: acc.writer(),
+                    bins: own.writer(),
                 };
                 stream.run(first + lo as u64, &ns, &mut sink)?;
                 if let Some(pb) = progress {
@@ -467,7 +497,7 @@ fn run_rounds<M: Map2, A: Accumulator, F: Fn() -> A + Sync>(
             .collect();
         // The first failing batch in trajectory order, whatever ran first.
         results.into_iter().collect::<Result<()>>()?;
-        let hits: u64 = accs.iter().map(|a| lock(a).recorded()).sum();
+        let hits: u64 = bins.iter().map(|b| bins::lock(b).recorded()).sum();
         generated += cfg.points;
         rounds += 1;
         if cfg.min_hits == 0 || hits >= cfg.min_hits || generated >= max_points {
@@ -483,26 +513,12 @@ fn run_rounds<M: Map2, A: Accumulator, F: Fn() -> A + Sync>(
             pb.set_length(generated + cfg.points);
         }
     };
-    let mut parts: Vec<A> = accs
-        .into_par_iter()
-        .map(|a| {
-            a.into_inner()
-                .unwrap_or_else(|e| e.into_inner())
-                .into_inner()
-        })
-        .collect();
-    let mut acc = parts.remove(0);
-    for p in parts {
-        acc.merge(p);
-    }
+    bins.into_par_iter().for_each(|b| {
+        b.into_inner().unwrap_or_else(|e| e.into_inner()).flush();
+    });
+    drop(tiles);
     let values = acc.finish(cfg.width, cfg.height);
     Ok((values, (generated, hits, rounds, by_time)))
-}
-
-/// Locks a worker's buffer (a panic elsewhere cannot leave it half-written: binning has no
-/// invariant a panic breaks, so a poisoned lock is taken as is).
-fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 /// Points kept by trajectory `i` of `t` when a round has `total` points.
@@ -514,6 +530,43 @@ fn points_of(total: u64, t: usize, i: usize) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The estimate the memory budget checks is what the accumulator and each thread's
+    /// bins allocate.
+    #[test]
+    fn memory_estimate_is_what_the_buffers_take() {
+        fn check<A: Accumulator>(mut acc: A, cfg: &RenderConfig, label: &str) {
+            let buffer = (std::mem::size_of_val(acc.words_mut())) as u64;
+            let tiles = bins::Tiles::new(&mut acc);
+            let bin = bins::Bins::new(&tiles).bytes();
+            let est = cfg.memory_estimate(3);
+            let part = |name: &str| {
+                est.parts()
+                    .into_iter()
+                    .find(|p| p.0 == name)
+                    .map(|p| p.1)
+                    .unwrap()
+            };
+            let what = format!("{}×{} at {}×", cfg.width, cfg.height, cfg.supersample);
+            assert_eq!(part(label), buffer, "{what}");
+            assert_eq!(part("tile bins × 3 threads"), 3 * bin, "{what}");
+        }
+        for (width, height, supersample) in [(1024, 1024, 16), (97, 61, 3), (300, 200, 1)] {
+            let cfg = RenderConfig {
+                width,
+                height,
+                supersample,
+                ..RenderConfig::default()
+            };
+            let acc = coverage::Coverage::new(width, height, supersample);
+            check(acc, &cfg, "coverage bits");
+            let cfg = RenderConfig {
+                mode: RenderMode::Density,
+                ..cfg
+            };
+            check(density::Density::new(width, height), &cfg, "counts");
+        }
+    }
 
     #[test]
     fn trajectory_split_sums_to_total() {
