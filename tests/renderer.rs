@@ -23,7 +23,7 @@ use ifslab::model::segment::{Pattern, builtin};
 use ifslab::render::flame_diff::{DiffFlameConfig, FlameRenderer};
 use ifslab::render::sdf::{SdfRenderConfig, SdfRenderer, SdfView};
 use ifslab::render::splat::{Blend, Splat, SplatConfig};
-use ifslab::render::{Draws, Planes, Renderer, value_and_grad};
+use ifslab::render::{Draws, Planes, Renderer, Sampler, value_and_grad};
 
 /// Fixed weights in [−0.4, 0.6), one per image value.
 fn weights(n: usize) -> Vec<f64> {
@@ -327,4 +327,112 @@ fn a_renderer_defined_outside_the_crate() {
         1e-6,
     );
     assert!(scale > 1e-2);
+}
+
+/// A renderer that only counts its draws, drawing as `D` says (0: every call, 1: once per
+/// run, else never); its sampling state is `(seed, draw, how many draws so far)`.
+struct Counting<const D: u8>(std::cell::Cell<u32>);
+
+impl<const D: u8> Renderer for Counting<D> {
+    type Scene = ();
+    type Pixel = f64;
+    type Sampling = (u64, u64, u32);
+    type Tape = ();
+
+    const DRAWS: Draws = match D {
+        0 => Draws::EveryCall,
+        1 => Draws::PerRun,
+        _ => Draws::Never,
+    };
+
+    fn planes(&self) -> Planes {
+        Planes {
+            channels: 1,
+            height: 1,
+            width: 1,
+        }
+    }
+
+    fn sampling(&self, _: &(), seed: u64, draw: u64) -> (u64, u64, u32) {
+        self.0.set(self.0.get() + 1);
+        (seed, draw, self.0.get())
+    }
+
+    fn forward(&self, _: &(), _: &(u64, u64, u32)) -> ifslab::Result<(Vec<f64>, ())> {
+        Ok((vec![0.0], ()))
+    }
+
+    fn backward(&self, _: &(), _: &(u64, u64, u32), _: &(), _: &[f64]) -> ifslab::Result<Vec<f64>> {
+        Ok(Vec::new())
+    }
+}
+
+#[test]
+fn the_sampler_draws_as_each_renderer_says() {
+    // Every call: a fresh draw each time, of the index asked for.
+    let r = Counting::<0>(Default::default());
+    let s = Sampler::new(5);
+    assert_eq!(*s.sampling(&r, &(), 3), (5, 3, 1));
+    assert_eq!(*s.sampling(&r, &(), 3), (5, 3, 2));
+    assert_eq!(*s.sampling(&r, &(), 4), (5, 4, 3));
+
+    // Once per run: kept while the same index is asked for, redrawn for another (and for
+    // an earlier one again); a clone shares the kept draw.
+    let r = Counting::<1>(Default::default());
+    let s = Sampler::new(5);
+    let first = s.sampling(&r, &(), 0);
+    assert_eq!(*first, (5, 0, 1));
+    assert!(std::sync::Arc::ptr_eq(&first, &s.sampling(&r, &(), 0)));
+    assert!(std::sync::Arc::ptr_eq(
+        &first,
+        &s.clone().sampling(&r, &(), 0)
+    ));
+    assert_eq!(*s.sampling(&r, &(), 1), (5, 1, 2));
+    assert_eq!(*s.sampling(&r, &(), 1), (5, 1, 2));
+    assert_eq!(*s.sampling(&r, &(), 0), (5, 0, 3));
+
+    // Never: draw 0 whatever is asked, nothing kept.
+    let r = Counting::<2>(Default::default());
+    let s = Sampler::new(5);
+    assert_eq!(*s.sampling(&r, &(), 7), (5, 0, 1));
+    assert_eq!(*s.sampling(&r, &(), 9), (5, 0, 2));
+
+    // The three renderers: exactly their own draws.
+    let maps = vec![Affine2::new(0.5, 0.0, 0.0, 0.5, 0.0, 0.0)];
+    let splat = Splat::<Affine2, f32>::new(SplatConfig::default());
+    let s = Sampler::new(11);
+    for draw in [0, 1, 7] {
+        assert_eq!(
+            *s.sampling(&splat, &maps, draw),
+            splat.sampling(&maps, 11, draw)
+        );
+    }
+    let stack = FlameStack {
+        layers: vec![
+            LearnableFlame::random(
+                &[vec![V::Spherical], vec![V::Linear]],
+                Learn::default(),
+                &LearnableInit::default(),
+                4,
+            )
+            .unwrap(),
+        ],
+        background: Background::Fixed([1.0; 3]),
+    };
+    let flame = FlameRenderer {
+        cfg: DiffFlameConfig {
+            size: 12,
+            trajectories: 18,
+            steps: 40,
+            warmup: 3,
+            chunks: 2,
+        },
+    };
+    let s = Sampler::new(11);
+    for draw in [0, 0, 2, 1] {
+        assert_eq!(
+            *s.sampling(&flame, &stack, draw),
+            flame.sampling(&stack, 11, draw)
+        );
+    }
 }

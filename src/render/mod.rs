@@ -33,7 +33,7 @@ pub mod splat;
 pub mod view;
 
 pub use raster::{Raster, RenderConfig, RenderMode, RenderStats, render, render_with_isa};
-pub use renderer::{Draws, Planes, Renderer, value_and_grad};
+pub use renderer::{Draws, Planes, Renderer, Sampler, value_and_grad};
 /// [`view`]'s former name.
 #[doc(hidden)]
 pub use view as framing;

@@ -17,11 +17,15 @@
 //! loss sees a renderer's image without a copy.
 //!
 //! [`value_and_grad`] is one differentiable step through any renderer: render, the loss on
-//! the image, the reverse pass.
+//! the image, the reverse pass. A problem obtains its sampling state through a [`Sampler`]:
+//! it holds the run's seed and, for a renderer drawing once per run, the last draw, so every
+//! problem draws the way [`Renderer::DRAWS`] says without a cache of its own.
 //!
 //! **Adding a renderer**: a type holding its settings, implementing the four methods; check
 //! its reverse pass with a finite-difference test through the trait (`tests/renderer.rs`
 //! does it for all three, generically).
+
+use std::sync::{Arc, Mutex};
 
 use crate::error::Result;
 use crate::math::Real;
@@ -125,4 +129,84 @@ where
     drop(image);
     let grad = renderer.backward(scene, sampling, &tape, &grad_image)?;
     Ok((value, grad))
+}
+
+/// A run's sampling states for renderers of type `R`: [`Renderer::sampling`] of the run's
+/// seed, drawn as [`Renderer::DRAWS`] says — afresh on every call for
+/// [`Draws::EveryCall`]; for [`Draws::PerRun`], once per draw index and kept until another
+/// index is asked for (a problem redrawing every so many iterations asks for its epoch);
+/// for [`Draws::Never`], draw 0 every time, nothing kept.
+///
+/// What it gives is exactly what `renderer.sampling(scene, seed, draw)` gives; it only
+/// saves the redraws. A kept draw was drawn for the renderer and scene of the call that drew
+/// it: a problem asks with one renderer setting and one scene per run for the sampling
+/// (the flame problem: its start's stack), as the flame pipeline's generator order depends
+/// only on the stack's shape.
+pub struct Sampler<R: Renderer> {
+    seed: u64,
+    kept: Mutex<Option<(u64, Arc<R::Sampling>)>>,
+}
+
+impl<R: Renderer> Sampler<R> {
+    /// The sampler of a run seeded with `seed`.
+    pub fn new(seed: u64) -> Self {
+        Sampler {
+            seed,
+            kept: Mutex::new(None),
+        }
+    }
+
+    /// The run's seed.
+    pub fn seed(&self) -> u64 {
+        self.seed
+    }
+
+    /// The sampling state of draw `draw` (the iteration or random stream for a renderer
+    /// drawing every call, the redraw epoch for one drawing per run; ignored for a
+    /// deterministic renderer).
+    pub fn sampling(&self, renderer: &R, scene: &R::Scene, draw: u64) -> Arc<R::Sampling> {
+        match R::DRAWS {
+            Draws::EveryCall => Arc::new(renderer.sampling(scene, self.seed, draw)),
+            Draws::Never => Arc::new(renderer.sampling(scene, self.seed, 0)),
+            Draws::PerRun => {
+                // A poisoned lock still holds a whole draw or none: the slot is written in
+                // one assignment.
+                let mut kept = self.kept.lock().unwrap_or_else(|e| e.into_inner());
+                if let Some((d, s)) = kept.as_ref()
+                    && *d == draw
+                {
+                    return s.clone();
+                }
+                let s = Arc::new(renderer.sampling(scene, self.seed, draw));
+                *kept = Some((draw, s.clone()));
+                s
+            }
+        }
+    }
+}
+
+impl<R: Renderer> Clone for Sampler<R> {
+    /// The same seed, sharing the kept draw.
+    fn clone(&self) -> Self {
+        let kept = self.kept.lock().unwrap_or_else(|e| e.into_inner()).clone();
+        Sampler {
+            seed: self.seed,
+            kept: Mutex::new(kept),
+        }
+    }
+}
+
+impl<R: Renderer> std::fmt::Debug for Sampler<R> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let kept = self
+            .kept
+            .lock()
+            .map(|k| k.as_ref().map(|(d, _)| *d))
+            .unwrap_or(None);
+        f.debug_struct("Sampler")
+            .field("seed", &self.seed)
+            .field("draws", &R::DRAWS)
+            .field("kept_draw", &kept)
+            .finish()
+    }
 }

@@ -1,11 +1,11 @@
 //! The fit: θ → flame stack → differentiable flame pipeline → the authors' MSE against the
 //! RGB target → gradient, all in f64 with the pipeline's hand-written reverse pass.
 
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 use ifslab::model::flame::learnable::{Background, FlameStack};
 use ifslab::render::flame_diff::{DiffFlameConfig, FlameFrame, FlameRenderer, GeneratorOrder, mse};
-use ifslab::render::{Renderer, value_and_grad};
+use ifslab::render::{Renderer, Sampler, value_and_grad};
 
 use crate::driver::{Differentiable, Evaluation};
 use crate::error::{Error, Result};
@@ -22,7 +22,8 @@ pub struct FlameProblem {
     renderer: FlameRenderer,
     /// Three planes, `size × size`, row 0 at the top.
     target: Vec<f32>,
-    seed: u64,
+    /// The run's generator orders: one per redraw epoch, drawn for the start's stack.
+    sampler: Sampler<FlameRenderer>,
     redraw_every: u64,
     loss: FlameLoss,
     rates: Vec<f64>,
@@ -30,7 +31,6 @@ pub struct FlameProblem {
     /// transform, κ).
     geometry: Vec<bool>,
     freeze_geometry: u64,
-    order: Mutex<Option<(u64, Arc<GeneratorOrder>)>>,
 }
 
 impl FlameProblem {
@@ -76,13 +76,12 @@ impl FlameProblem {
             stack,
             renderer: FlameRenderer { cfg },
             target,
-            seed,
+            sampler: Sampler::new(seed),
             redraw_every,
             loss,
             rates: r,
             geometry,
             freeze_geometry: rates.freeze_geometry,
-            order: Mutex::new(None),
         })
     }
 
@@ -103,18 +102,12 @@ impl FlameProblem {
         &self.target
     }
 
-    /// The generator order used at iteration `iter`.
+    /// The generator order used at iteration `iter`: the renderer's draw for the redraw
+    /// epoch `iter / redraw_every` (0 throughout when the order is never redrawn), drawn
+    /// once per epoch.
     pub fn order_at(&self, iter: u64) -> Arc<GeneratorOrder> {
         let epoch = iter.checked_div(self.redraw_every).unwrap_or(0);
-        let mut slot = self.order.lock().expect("order cache");
-        if let Some((e, o)) = slot.as_ref()
-            && *e == epoch
-        {
-            return o.clone();
-        }
-        let o = Arc::new(self.renderer.sampling(&self.stack, self.seed, epoch));
-        *slot = Some((epoch, o.clone()));
-        o
+        self.sampler.sampling(&self.renderer, &self.stack, epoch)
     }
 
     /// The render at θ with the order of iteration `iter`.

@@ -17,8 +17,8 @@ use candle_core::Tensor;
 use ifslab::loss::{LossBreakdown, Objective};
 use ifslab::model::diff_map::{AffinePart, Similitude2};
 use ifslab::model::{Affine2, Parameterisation};
-use ifslab::render::Renderer;
 use ifslab::render::splat::{self, Splat, SplatConfig};
+use ifslab::render::{Renderer, Sampler};
 
 use ifslab::model::ParamKind;
 use serde::{Deserialize, Serialize};
@@ -52,35 +52,40 @@ pub trait ImageModel: Send + Sync + 'static {
 /// every model; each call is monomorphised for the model's map type inside.
 pub trait AnyModel: Send + Sync {
     /// The loss terms at θ and the gradient of the total with respect to θ: θ → maps → splat
-    /// (σ and seed of this iteration) → `objective` and back ([`splat::objective_and_grad`]:
-    /// fused on the GPU where it can, else the splat op through candle's autograd), then the
-    /// model's chain rule.
+    /// (σ of this iteration, the chaos game of draw `stream` of the run seeded `seed`, as
+    /// the splat's [`Sampler`] gives it) → `objective` and back
+    /// ([`splat::objective_and_grad`]: fused on the GPU where it can, else the splat op
+    /// through candle's autograd), then the model's chain rule.
     fn evaluate(
         &self,
         theta: &[f64],
         splat: SplatConfig,
         seed: u64,
+        stream: u64,
         draw: &DrawOptions,
         objective: &Objective,
     ) -> Result<(LossBreakdown, Vec<f64>)>;
 
-    /// The objective's MS-MSE of a render of θ computed on the GPU (only the scalar comes
-    /// back), or `None` where that route does not apply ([`splat::render_msmse`]).
+    /// The objective's MS-MSE of a render of θ (draw `stream` of the run seeded `seed`)
+    /// computed on the GPU (only the scalar comes back), or `None` where that route does not
+    /// apply ([`splat::render_msmse`]).
     fn render_msmse(
         &self,
         theta: &[f64],
         splat: &SplatConfig,
         seed: u64,
+        stream: u64,
         draw: &DrawOptions,
         objective: &Objective,
     ) -> Result<Option<f64>>;
 
-    /// The splat render of θ (no gradient).
+    /// The splat render of θ, draw `stream` of the run seeded `seed` (no gradient).
     fn render(
         &self,
         theta: &[f64],
         splat: &SplatConfig,
         seed: u64,
+        stream: u64,
         draw: &DrawOptions,
     ) -> Result<Vec<f32>>;
 
@@ -122,16 +127,18 @@ impl<M: ImageModel> AnyModel for M {
         theta: &[f64],
         splat: SplatConfig,
         seed: u64,
+        stream: u64,
         draw: &DrawOptions,
         objective: &Objective,
     ) -> Result<(LossBreakdown, Vec<f64>)> {
         let maps = self.decode(theta)?;
+        let (splat, chaos_seed) = sampled::<M::Map>(splat, &maps, seed, stream, draw);
         let (breakdown, g) = splat::objective_and_grad(
-            &splat,
+            &splat.cfg,
             &maps,
-            draw.probs.as_deref(),
+            splat.probs.as_deref(),
             draw.clamp,
-            seed,
+            chaos_seed,
             objective,
         )?;
         Ok((breakdown, self.backward(theta, &g)?))
@@ -142,16 +149,18 @@ impl<M: ImageModel> AnyModel for M {
         theta: &[f64],
         splat: &SplatConfig,
         seed: u64,
+        stream: u64,
         draw: &DrawOptions,
         objective: &Objective,
     ) -> Result<Option<f64>> {
         let maps = self.decode(theta)?;
+        let (splat, chaos_seed) = sampled::<M::Map>(splat.clone(), &maps, seed, stream, draw);
         Ok(splat::render_msmse(
-            splat,
+            &splat.cfg,
             &maps,
-            draw.probs.as_deref(),
+            splat.probs.as_deref(),
             draw.clamp,
-            seed,
+            chaos_seed,
             objective,
         )?)
     }
@@ -161,12 +170,12 @@ impl<M: ImageModel> AnyModel for M {
         theta: &[f64],
         splat: &SplatConfig,
         seed: u64,
+        stream: u64,
         draw: &DrawOptions,
     ) -> Result<Vec<f32>> {
         let maps = self.decode(theta)?;
-        let renderer =
-            Splat::<M::Map, f32>::new(splat.clone()).with_probabilities(draw.probs.clone());
-        let mut img = renderer.forward(&maps, &seed)?.0;
+        let (renderer, chaos_seed) = sampled::<M::Map>(splat.clone(), &maps, seed, stream, draw);
+        let mut img = renderer.forward(&maps, &chaos_seed)?.0;
         if draw.clamp {
             img.iter_mut().for_each(|v| *v = v.min(1.0));
         }
@@ -198,6 +207,22 @@ impl<M: ImageModel> AnyModel for M {
     fn n_maps(&self, theta: &[f64]) -> Result<usize> {
         Ok(self.decode(theta)?.len())
     }
+}
+
+/// The splat that renders `maps` with `cfg` and `draw`'s map probabilities, and its chaos
+/// game's seed for draw `stream` of the run seeded `seed`, from the run's [`Sampler`] (the
+/// splat draws every call: the sampler keeps nothing, so one made here for the call is the
+/// run's).
+fn sampled<M: AffinePart>(
+    cfg: SplatConfig,
+    maps: &[M],
+    seed: u64,
+    stream: u64,
+    draw: &DrawOptions,
+) -> (Splat<M, f32>, u64) {
+    let splat = Splat::<M, f32>::new(cfg).with_probabilities(draw.probs.clone());
+    let chaos_seed = *Sampler::new(seed).sampling(&splat, maps, stream);
+    (splat, chaos_seed)
 }
 
 /// General affine maps under a [`Parameterisation`] (`family = "affine"`, the default).

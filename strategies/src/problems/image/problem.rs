@@ -6,7 +6,6 @@
 use std::borrow::Cow;
 
 use candle_core::{Device, Tensor};
-use ifslab::chaos::mix_seed;
 use ifslab::loss::{ImageLoss, LossBreakdown, LossConfig, MsMse, Objective};
 use ifslab::render::splat::{SplatConfig, SplatDevice};
 
@@ -158,7 +157,8 @@ impl ImageProblem {
         self.model.render(
             theta,
             &self.splat_at(frac),
-            mix_seed(self.seed, stream),
+            self.seed,
+            stream,
             &self.draw_options(theta)?,
         )
     }
@@ -205,7 +205,8 @@ impl Differentiable for ImageProblem {
         let (b, grad) = self.model.evaluate(
             theta,
             self.splat_at(self.progress(iter)).into_owned(),
-            mix_seed(self.seed, iter),
+            self.seed,
+            iter,
             &self.draw_options(theta)?,
             &self.objective,
         )?;
@@ -235,7 +236,8 @@ impl Anneal for ImageProblem {
             && let Some(v) = self.model.render_msmse(
                 theta,
                 &self.splat_at(frac),
-                mix_seed(self.seed, stream),
+                self.seed,
+                stream,
                 &self.draw_options(theta)?,
                 &self.objective,
             )?

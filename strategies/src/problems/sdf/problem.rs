@@ -11,8 +11,8 @@
 
 use ifslab::loss::{ImageLoss, MsMse};
 use ifslab::model::segment::Pattern;
-use ifslab::render::Renderer;
 use ifslab::render::sdf::{SdfRenderConfig, SdfRenderer, SdfView};
+use ifslab::render::{Renderer, Sampler};
 use serde::{Deserialize, Serialize};
 
 use crate::driver::{Differentiable, Evaluation};
@@ -141,6 +141,8 @@ pub struct SdfProblem {
     target_dist: Option<Vec<f64>>,
     /// Learned pairs: θ holds softmax logits after the points.
     learned: Option<LearnedPattern>,
+    /// The raster's sampling state: none, it is deterministic (no seed).
+    sampler: Sampler<SdfRenderer>,
 }
 
 /// One evaluation's numbers.
@@ -212,6 +214,7 @@ impl SdfProblem {
             target,
             target_dist,
             learned: None,
+            sampler: Sampler::new(0),
         })
     }
 
@@ -301,8 +304,9 @@ impl SdfProblem {
     /// The rendered image at θ (with the final σ).
     pub fn image(&self, theta: &[f64]) -> Result<Vec<f64>> {
         let p = self.pattern_at(theta)?;
-        Ok(SdfRenderer::new(self.view, self.render, self.sigma)
-            .forward(&p, &())?
+        let renderer = SdfRenderer::new(self.view, self.render, self.sigma);
+        Ok(renderer
+            .forward(&p, &self.sampler.sampling(&renderer, &p, 0))?
             .0)
     }
 
@@ -340,7 +344,8 @@ impl SdfProblem {
             None => self.pattern.with_flat_points(theta)?,
         };
         let renderer = self.renderer(sigma);
-        let (planes, raster) = renderer.forward(&p, &())?;
+        let sampling = self.sampler.sampling(&renderer, &p, 0);
+        let (planes, raster) = renderer.forward(&p, &sampling)?;
         let (w, h) = (self.view.width, self.view.height);
         let mse = MsMse::new(self.loss.levels);
         // ∂L/∂planes: the intensity plane's, then the distance plane's.
@@ -400,7 +405,7 @@ impl SdfProblem {
             )));
         }
         if grad {
-            let mut g = renderer.backward(&p, &(), &raster, &g_planes)?;
+            let mut g = renderer.backward(&p, &sampling, &raster, &g_planes)?;
             if let Some(gc) = g_cross {
                 for (x, c) in g.iter_mut().zip(gc) {
                     *x += self.loss.crossing * c;
