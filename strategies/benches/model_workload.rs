@@ -71,8 +71,11 @@ fn main() {
     let model = AffineModel(Box::new(Svd::default()));
     let any: &dyn AnyModel = &model;
     let mut sink = 0.0f64;
+    // Both stages render the chaos game of draw `call` of a run seeded RUN_SEED: the
+    // model is given the run's seed and the draw and asks the splat for it.
+    const RUN_SEED: u64 = 7;
     for call in 0..calls {
-        let seed = call as u64;
+        let seed = ifslab::chaos::mix_seed(RUN_SEED, call as u64);
         sink += match stage.as_str() {
             "direct" => {
                 let m = p.decode(&theta).expect("decode");
@@ -97,7 +100,8 @@ fn main() {
                     .evaluate(
                         &theta,
                         cfg.clone(),
-                        seed,
+                        RUN_SEED,
+                        call as u64,
                         &DrawOptions::default(),
                         &objective,
                     )
