@@ -174,6 +174,86 @@ fn zoom_views_discard_outside_points_and_meet_hit_targets() {
     assert!(iou(&a, &b).unwrap() > 0.5);
 }
 
+/// A deep zoom draws the window's points through the code's words: at 2²⁰ the plain game
+/// puts none of its points in the window, the words most of them; at 8× both draw the same
+/// shape, the plain game from four rounds of points where the words need one.
+#[test]
+fn deep_zoom_fills_a_window_the_plain_game_cannot_reach() {
+    let base = RenderConfig {
+        width: 128,
+        height: 128,
+        points: 400_000,
+        seed: 5,
+        deep_zoom: true,
+        ..RenderConfig::default()
+    };
+    // The midpoint of the triangle's base lies on the attractor at every depth.
+    let deep = Zoom {
+        factor: f64::powi(2.0, 20),
+        center: Some([0.5, 0.0]),
+    };
+    let words = render_builtin(
+        "sierpinski",
+        &RenderConfig {
+            zoom: Some(deep),
+            ..base.clone()
+        },
+    );
+    let plain = render_builtin(
+        "sierpinski",
+        &RenderConfig {
+            zoom: Some(deep),
+            deep_zoom: false,
+            ..base.clone()
+        },
+    );
+    assert_eq!(plain.stats.points_in_window, 0);
+    assert!(
+        words.stats.points_in_window * 2 > words.stats.points_generated,
+        "{} of {} points in the window",
+        words.stats.points_in_window,
+        words.stats.points_generated
+    );
+    // The triangle's base at 2²⁰: a thin triangle corner pattern, neither empty nor full.
+    let cov = words.values.iter().filter(|&&v| v > 0.0).count() as f64 / (128.0 * 128.0);
+    assert!(cov > 0.05 && cov < 0.6, "coverage {cov}");
+
+    // At 8× on the fern both ways draw the same picture.
+    let zoom = Zoom {
+        factor: 8.0,
+        center: Some([0.0, 5.0]),
+    };
+    let w = render_builtin(
+        "fern",
+        &RenderConfig {
+            zoom: Some(zoom),
+            ..base.clone()
+        },
+    );
+    let p = render_builtin(
+        "fern",
+        &RenderConfig {
+            zoom: Some(zoom),
+            deep_zoom: false,
+            min_hits: w.stats.points_in_window,
+            max_points: 64 * base.points,
+            ..base.clone()
+        },
+    );
+    assert!(p.stats.rounds >= 4, "{} rounds", p.stats.rounds);
+    let same = iou(&w.mask(0.0), &p.mask(0.0)).unwrap();
+    assert!(same > 0.9, "IoU {same}");
+    // The same seed draws the same deep zoom.
+    let again = render_builtin(
+        "fern",
+        &RenderConfig {
+            zoom: Some(zoom),
+            ..base
+        },
+    );
+    assert_eq!(again.values, w.values);
+}
+
 #[test]
 fn supersampled_coverage_is_fractional_and_consistent() {
     let cfg = RenderConfig {

@@ -12,11 +12,16 @@
 //! time, each point handed to a sink, the loop compiled once per instruction set ([`Isa`],
 //! [`crate::isa`])
 //! so affine maps' multiply–adds are single instructions where the CPU has FMA.
+//!
+//! [`WindowWords`] is the deep-zoom sampler: the words of the code whose images of the
+//! attractor meet a window, so that the points of a zoomed view come from about as many
+//! chaos-game points as the full view's ([`WordSink`] maps a stream's points through them).
 
 mod game;
 mod rng;
 mod sampler;
 mod stream;
+mod zoom;
 
 /// The instruction-set policy lives in [`crate::isa`]; re-exported here, where it started.
 pub use crate::isa::Isa;
@@ -24,3 +29,4 @@ pub use game::{ChaosGame, DIVERGENCE_BOUND, Points, Trajectory, bbox, generate_n
 pub use rng::{mix_seed, trajectory_rng};
 pub use sampler::MapSampler;
 pub use stream::{LANES, PointSink, PointStream};
+pub use zoom::{WindowWords, WordSink};

@@ -15,6 +15,12 @@ use crate::error::{Error, Result};
 pub trait Map2: Send + Sync {
     /// The image of `p` under the map.
     fn apply(&self, p: [f64; 2]) -> [f64; 2];
+
+    /// The map as an [`Affine2`] when it is one (what the deep-zoom sampler composes,
+    /// [`crate::chaos::WindowWords`]); `None`, the default, for non-linear maps.
+    fn affine(&self) -> Option<Affine2> {
+        None
+    }
 }
 
 /// A 2-D affine map `x ↦ M·x + b`.
@@ -124,6 +130,10 @@ impl Map2 for Affine2 {
             m[(0, 0)].mul_add(p[0], m[(0, 1)].mul_add(p[1], self.b[0])),
             m[(1, 0)].mul_add(p[0], m[(1, 1)].mul_add(p[1], self.b[1])),
         ]
+    }
+
+    fn affine(&self) -> Option<Affine2> {
+        Some(*self)
     }
 }
 

@@ -48,6 +48,12 @@ pub struct Args {
     /// Wall-clock cap in seconds for --min-hits rounds (result then depends on speed).
     #[arg(long)]
     pub time_limit: Option<f64>,
+    /// Zoom by keeping only the chaos-game points that land in the window (as the suites'
+    /// zoomed views are drawn), instead of sending the points through the words of the code
+    /// whose images meet the window — which makes a zoom at any depth (to about 2^43) cost
+    /// what the full view costs.
+    #[arg(long)]
+    pub plain_zoom: bool,
     /// Seed of the chaos game.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -120,6 +126,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         min_hits: a.min_hits,
         max_points: a.max_points,
         time_limit: a.time_limit,
+        deep_zoom: !a.plain_zoom,
         ..RenderConfig::default()
     };
     let pb = progress::bar(cfg.points, "points");

@@ -36,7 +36,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::budget::{MemoryEstimate, check_memory, check_rate};
-use crate::chaos::{LANES, MapSampler, PointSink, PointStream};
+use crate::chaos::{LANES, MapSampler, PointSink, PointStream, WindowWords, WordSink};
 use crate::error::{Error, Result};
 use crate::isa::Isa;
 use crate::model::affine::Map2;
@@ -85,7 +85,17 @@ pub struct RenderConfig {
     pub max_points: u64,
     /// Optional wall-clock cap in seconds on the rounds (not deterministic).
     pub time_limit: Option<f64>,
+    /// Draw a zoomed view of an affine code through the words of the code whose images
+    /// meet the window ([`WindowWords`]): nearly every point lands in the window, so a zoom
+    /// at any depth (to about 2⁴³) costs what the full view costs. The image has the plain
+    /// game's distribution, not its bits. Off by default in the library (the suites' zoomed
+    /// views were drawn without it); `ifslab render --zoom` turns it on.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub deep_zoom: bool,
 }
+
+/// Most words a deep zoom keeps ([`RenderConfig::deep_zoom`]); 48 bytes each.
+pub const DEEP_ZOOM_MAX_WORDS: usize = 200_000;
 
 impl Default for RenderConfig {
     fn default() -> Self {
@@ -103,6 +113,7 @@ impl Default for RenderConfig {
             min_hits: 0,
             max_points: 0,
             time_limit: None,
+            deep_zoom: false,
         }
     }
 }
@@ -404,10 +415,12 @@ pub fn render_with_isa<M: Map2>(
         Some(z) => zoom_window(&base, z)?,
         None => base,
     };
+    let words = deep_zoom_words(maps, probs, cfg, &window)?;
     let stream = PointStream::new(maps, &sampler, cfg.seed, 1.0, cfg.warmup)?.with_isa(isa)?;
     let (values, counts) = match cfg.mode {
         RenderMode::Coverage => run_rounds(
             &stream,
+            words.as_ref(),
             cfg,
             &window,
             progress,
@@ -416,6 +429,7 @@ pub fn render_with_isa<M: Map2>(
         )?,
         RenderMode::Density => run_rounds(
             &stream,
+            words.as_ref(),
             cfg,
             &window,
             progress,
@@ -438,10 +452,31 @@ pub fn render_with_isa<M: Map2>(
     })
 }
 
+/// The words a deep zoom draws through: only for a zoomed view of affine maps with
+/// [`RenderConfig::deep_zoom`] on, and only when the window needs more than the whole
+/// attractor (a window around all of it keeps the plain game's bits).
+fn deep_zoom_words<M: Map2>(
+    maps: &[M],
+    probs: &[f64],
+    cfg: &RenderConfig,
+    window: &Window,
+) -> Result<Option<WindowWords>> {
+    if !cfg.deep_zoom || cfg.zoom.is_none() {
+        return Ok(None);
+    }
+    let Some(affine) = maps.iter().map(Map2::affine).collect::<Option<Vec<_>>>() else {
+        return Ok(None);
+    };
+    // A window that misses the attractor is drawn the plain way: an empty view.
+    let words = WindowWords::new(&affine, probs, window, 0.5, DEEP_ZOOM_MAX_WORDS)?;
+    Ok(words.filter(|w| w.depth() > 0))
+}
+
 type RoundCounts = (u64, u64, u32, bool);
 
 fn run_rounds<M: Map2, A: Accumulator>(
     stream: &PointStream<'_, M>,
+    words: Option<&WindowWords>,
     cfg: &RenderConfig,
     window: &Window,
     progress: Option<&dyn Progress>,
@@ -488,7 +523,10 @@ fn run_rounds<M: Map2, A: Accumulator>(
                     pm,
                     bins: own.writer(),
                 };
-                stream.run(first + lo as u64, &ns, &mut sink)?;
+                match words {
+                    Some(w) => stream.run(first + lo as u64, &ns, &mut WordSink::new(w, sink))?,
+                    None => stream.run(first + lo as u64, &ns, &mut sink)?,
+                }
                 if let Some(pb) = progress {
                     pb.inc(ns.iter().sum());
                 }
