@@ -26,10 +26,9 @@ use std::hint::black_box;
 use candle_core::{DType, Device, Tensor, Var};
 use ifslab::chaos::ChaosGame;
 use ifslab::loss::{ImageLoss, LossConfig, MsMse, Objective};
+use ifslab::model::Svd;
 use ifslab::model::flame::read_flames;
 use ifslab::model::param::Parameterisation;
-use ifslab::model::random::sample_code;
-use ifslab::model::{Affine2, Svd};
 use ifslab::render::flame::{FlameRenderConfig, render_flame};
 use ifslab::render::flame_diff::{self, GeneratorOrder};
 use ifslab::render::sdf::SdfRaster;
@@ -112,17 +111,8 @@ fn main() {
             },
         ),
     };
-    let code = sample_code(10, 3).expect("a valid sampler setting");
+    let (_, theta) = shrunk_code(10);
     let p = Svd::default();
-    let scaled: Vec<Affine2> = code
-        .maps
-        .iter()
-        .map(|m| Affine2 {
-            m: m.m,
-            b: m.b * 0.9,
-        })
-        .collect();
-    let theta = p.encode(&scaled).expect("encodable maps");
     let maps = p.decode(&theta).expect("decodable θ");
     let dev = Device::Cpu;
     let (target, tape) = splat::forward::<f32>(&cfg, &maps, 99).expect("forward");
@@ -222,7 +212,7 @@ fn sdf(calls: usize) {
         cfg,
         current,
         target,
-    } = koch_sdf_fixture();
+    } = koch_sdf_fixture(256, 3);
     let start = std::time::Instant::now();
     let mut sink = 0usize;
     for _ in 0..calls {

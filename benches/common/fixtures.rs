@@ -1,10 +1,32 @@
-// Fixtures shared by the instruction-count workloads: `benches/workload.rs` (the renderers
-// called directly) and `strategies/benches/problem_workload.rs` (the same settings through
-// the problems), so that the two measure the same scenes. Included with `include!`; paths
-// are written out so the including file needs no imports for them.
+// Scenes shared by the instruction-count workloads — `benches/workload.rs` (the renderers
+// called directly), `strategies/benches/{problem,model}_workload.rs` (the same settings
+// through the problems) — and `strategies/tests/sampling_bits.rs`, so that they measure
+// and pin the same scenes. Included with `include!`; paths are written out so the including
+// file needs no imports for them.
 
-/// The SDF iteration's scene (`benches/sdf.rs`): a Koch curve of depth 3 at 256², σ 1.5,
+/// A random code of `n` maps (seed 3) and, as SVD θ, the same code with its offsets shrunk
+/// by 10 %: the image scene (the code draws the target, the shrunk code is the start).
+#[allow(dead_code)]
+fn shrunk_code(n: usize) -> (Vec<ifslab::model::Affine2>, Vec<f64>) {
+    use ifslab::model::param::Parameterisation;
+    let code = ifslab::model::random::sample_code(n, 3).expect("a valid sampler setting");
+    let scaled: Vec<ifslab::model::Affine2> = code
+        .maps
+        .iter()
+        .map(|m| ifslab::model::Affine2 {
+            m: m.m,
+            b: m.b * 0.9,
+        })
+        .collect();
+    let theta = ifslab::model::Svd::default()
+        .encode(&scaled)
+        .expect("encodable maps");
+    (code.maps, theta)
+}
+
+/// The SDF iteration's scene (`benches/sdf.rs` at 256² and depth 3): a Koch curve, σ 1.5,
 /// cut-off 6σ; the target drawn from the truth, and the slightly moved pattern to fit.
+#[allow(dead_code)]
 struct KochSdfFixture {
     side: usize,
     sigma: f64,
@@ -14,10 +36,10 @@ struct KochSdfFixture {
     target: Vec<f64>,
 }
 
-fn koch_sdf_fixture() -> KochSdfFixture {
+#[allow(dead_code)]
+fn koch_sdf_fixture(side: usize, depth: usize) -> KochSdfFixture {
     use ifslab::model::segment::{SegmentMap, builtin};
     use ifslab::render::sdf::{SdfRaster, SdfRenderConfig, SdfView};
-    const SIDE: usize = 256;
     const SIGMA: f64 = 1.5;
     let koch_at = |to: [[f64; 2]; 2]| {
         let m = SegmentMap::between([0.0, 0.0], [1.0, 0.0], to[0], to[1]).expect("a map");
@@ -26,18 +48,18 @@ fn koch_sdf_fixture() -> KochSdfFixture {
             .transformed(&m)
             .expect("a pattern")
     };
-    let view = SdfView::unit_square(SIDE);
+    let view = SdfView::unit_square(side);
     let truth = koch_at([[0.15, 0.4], [0.85, 0.4]]);
     let current = koch_at([[0.16, 0.41], [0.84, 0.38]]);
     let cfg = SdfRenderConfig {
-        depth: 3,
+        depth,
         cutoff: Some(6.0 * SIGMA),
     };
     let target = SdfRaster::render(&truth, &view, &cfg)
         .expect("render")
         .image(SIGMA);
     KochSdfFixture {
-        side: SIDE,
+        side,
         sigma: SIGMA,
         view,
         cfg,
@@ -46,6 +68,7 @@ fn koch_sdf_fixture() -> KochSdfFixture {
     }
 }
 
+#[allow(dead_code)]
 /// One learnable-flame layer of 8 generators (spherical, handkerchief, swirl, polar, disc,
 /// sinusoidal, linear + exponential, linear) over white at 100², 200 × 200 samples, and a
 /// fixed pseudo-random RGB target.

@@ -18,11 +18,12 @@ use std::hint::black_box;
 
 use candle_core::{DType, Device, Tensor, Var};
 use ifslab::loss::{LossConfig, Objective};
+use ifslab::model::Svd;
 use ifslab::model::param::Parameterisation;
-use ifslab::model::random::sample_code;
-use ifslab::model::{Affine2, Svd};
 use ifslab::render::splat::{self, Blend, SplatConfig, SplatOp, maps_from_tensor, maps_to_tensor};
 use ifslab_strategies::problems::image::{AffineModel, AnyModel, DrawOptions};
+
+include!("../../benches/common/fixtures.rs");
 
 #[global_allocator]
 static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
@@ -48,17 +49,8 @@ fn main() {
         blend: Blend::Coverage,
         ..SplatConfig::default()
     };
-    let code = sample_code(10, 3).expect("a valid sampler setting");
-    let scaled: Vec<Affine2> = code
-        .maps
-        .iter()
-        .map(|m| Affine2 {
-            m: m.m,
-            b: m.b * 0.9,
-        })
-        .collect();
+    let (_, theta) = shrunk_code(10);
     let p = Svd::default();
-    let theta = p.encode(&scaled).expect("encodable maps");
     let maps = p.decode(&theta).expect("decodable θ");
     let dev = Device::Cpu;
     let (target, _) = splat::forward::<f32>(&cfg, &maps, 99).expect("forward");

@@ -19,9 +19,7 @@ use std::hint::black_box;
 
 use ifslab::chaos::ChaosGame;
 use ifslab::loss::LossConfig;
-use ifslab::model::param::Parameterisation;
-use ifslab::model::random::sample_code;
-use ifslab::model::{Affine2, Svd};
+use ifslab::model::Svd;
 use ifslab::render::splat::{self, Blend, SplatConfig};
 use ifslab_strategies::driver::Differentiable;
 use ifslab_strategies::problems::flame::{FlameLoss, FlameProblem, Rates};
@@ -78,18 +76,9 @@ fn image() -> (Box<dyn Differentiable>, Vec<f64>) {
         },
         ..SplatConfig::default()
     };
-    let code = sample_code(10, 3).expect("a valid sampler setting");
-    let scaled: Vec<Affine2> = code
-        .maps
-        .iter()
-        .map(|m| Affine2 {
-            m: m.m,
-            b: m.b * 0.9,
-        })
-        .collect();
+    let (truth, theta) = shrunk_code(10);
     let p = Svd::default();
-    let (target, _) = splat::forward::<f32>(&cfg, &code.maps, 99).expect("forward");
-    let theta = p.encode(&scaled).expect("encodable maps");
+    let (target, _) = splat::forward::<f32>(&cfg, &truth, 99).expect("forward");
     let loss = LossConfig {
         lpips_weight: 0.0,
         ..LossConfig::default()
@@ -107,7 +96,7 @@ fn sdf() -> (Box<dyn Differentiable>, Vec<f64>) {
         cfg,
         current,
         target,
-    } = koch_sdf_fixture();
+    } = koch_sdf_fixture(256, 3);
     assert_eq!(target.len(), side * side);
     let theta = current.flat_points();
     let problem = SdfProblem::new(

@@ -6,22 +6,20 @@
 
 use ifslab::chaos::ChaosGame;
 use ifslab::loss::LossConfig;
+use ifslab::model::Svd;
 use ifslab::model::flame::VariationKind as V;
 use ifslab::model::flame::learnable::{
     Background, FlameStack, Learn, LearnableFlame, LearnableInit,
 };
-use ifslab::model::param::Parameterisation;
-use ifslab::model::random::sample_code;
-use ifslab::model::segment::{SegmentMap, builtin};
-use ifslab::model::{Affine2, Svd};
 use ifslab::render::flame_diff::DiffFlameConfig;
-use ifslab::render::sdf::{SdfRaster, SdfRenderConfig, SdfView};
 use ifslab::render::splat::{self, Blend, SplatConfig};
 use ifslab_strategies::driver::Differentiable;
 use ifslab_strategies::optim::annealing::Anneal;
 use ifslab_strategies::problems::flame::{FlameLoss, FlameProblem, Rates};
 use ifslab_strategies::problems::image::{AffineModel, ImageProblem};
 use ifslab_strategies::problems::sdf::{SdfLossConfig, SdfProblem};
+
+include!("../../benches/common/fixtures.rs");
 
 /// FNV-1a over the bits of the loss and the gradient of iterations `0..4`.
 fn fingerprint(problem: &dyn Differentiable, theta: &[f64]) -> u64 {
@@ -54,18 +52,9 @@ fn image() -> (ImageProblem, Vec<f64>) {
         },
         ..SplatConfig::default()
     };
-    let code = sample_code(3, 3).expect("a valid sampler setting");
-    let scaled: Vec<Affine2> = code
-        .maps
-        .iter()
-        .map(|m| Affine2 {
-            m: m.m,
-            b: m.b * 0.9,
-        })
-        .collect();
+    let (truth, theta) = shrunk_code(3);
     let p = Svd::default();
-    let (target, _) = splat::forward::<f32>(&cfg, &code.maps, 99).expect("forward");
-    let theta = p.encode(&scaled).expect("encodable maps");
+    let (target, _) = splat::forward::<f32>(&cfg, &truth, 99).expect("forward");
     let loss = LossConfig {
         lpips_weight: 0.0,
         ..LossConfig::default()
@@ -93,28 +82,24 @@ fn image_problem_keeps_its_bits() {
 
 #[test]
 fn sdf_problem_keeps_its_bits() {
-    const SIDE: usize = 64;
-    const SIGMA: f64 = 1.5;
-    let koch_at = |to: [[f64; 2]; 2]| {
-        let m = SegmentMap::between([0.0, 0.0], [1.0, 0.0], to[0], to[1]).expect("a map");
-        builtin("koch")
-            .expect("koch")
-            .transformed(&m)
-            .expect("a pattern")
-    };
-    let view = SdfView::unit_square(SIDE);
-    let truth = koch_at([[0.15, 0.4], [0.85, 0.4]]);
-    let current = koch_at([[0.16, 0.41], [0.84, 0.38]]);
-    let cfg = SdfRenderConfig {
-        depth: 2,
-        cutoff: Some(6.0 * SIGMA),
-    };
-    let target = SdfRaster::render(&truth, &view, &cfg)
-        .expect("render")
-        .image(SIGMA);
+    let KochSdfFixture {
+        sigma,
+        view,
+        cfg,
+        current,
+        target,
+        ..
+    } = koch_sdf_fixture(64, 2);
     let theta = current.flat_points();
-    let problem = SdfProblem::new(current, target, view, 2, SIGMA, SdfLossConfig::default())
-        .expect("a problem");
+    let problem = SdfProblem::new(
+        current,
+        target,
+        view,
+        cfg.depth,
+        sigma,
+        SdfLossConfig::default(),
+    )
+    .expect("a problem");
     let h = fingerprint(&problem, &theta);
     println!("sdf {h:#018x}");
     assert_eq!(h, SDF);
