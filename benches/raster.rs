@@ -21,6 +21,10 @@
 //! (user + system, all threads; Linux only). On a machine shared with other jobs the
 //! scheduler hands a short job and a long one different shares of the cores, which moves
 //! wall-clock ratios; CPU time is what each costs whatever else runs.
+//!
+//! Group `deep_zoom_sierpinski_256px_5M`: the Sierpiński triangle's full view beside zooms of
+//! 2¹⁰ and 2²⁰ drawn through the code's words (`RenderConfig::deep_zoom`), 5 M points each:
+//! a deep zoom costs what the full view costs.
 
 /// The allocator the `ifslab` binary ships with, so the figures are what users get.
 #[global_allocator]
@@ -280,6 +284,50 @@ fn bench_render(c: &mut Criterion) {
     g.finish();
 }
 
+/// A deep zoom costs what the full view costs: the Sierpiński triangle at 256², 5 M points,
+/// the full view beside zooms of 2¹⁰ and 2²⁰ on the middle of its base, drawn through the
+/// code's words (`RenderConfig::deep_zoom`; the plain game lands no point at 2²⁰).
+fn bench_deep_zoom(c: &mut Criterion) {
+    let code = ifslab::model::library::builtin("sierpinski").unwrap();
+    let maps = code.affine2().unwrap();
+    let probs = code.evaluation_probabilities().unwrap();
+    let cfg = RenderConfig {
+        width: 256,
+        height: 256,
+        points: 5_000_000,
+        seed: 1,
+        deep_zoom: true,
+        ..RenderConfig::default()
+    };
+    let mut g = c.benchmark_group("deep_zoom_sierpinski_256px_5M");
+    g.sample_size(10);
+    g.throughput(Throughput::Elements(cfg.points));
+    for (name, zoom) in [
+        ("full_view", None),
+        ("words_2e10", Some(10)),
+        ("words_2e20", Some(20)),
+    ] {
+        let cfg = RenderConfig {
+            zoom: zoom.map(|k| ifslab::render::Zoom {
+                factor: f64::powi(2.0, k),
+                center: Some([0.5, 0.0]),
+            }),
+            ..cfg.clone()
+        };
+        g.bench_function(name, |b| {
+            b.iter(|| {
+                black_box(
+                    render(&maps, &probs, &cfg, None)
+                        .unwrap()
+                        .stats
+                        .points_in_window,
+                )
+            })
+        });
+    }
+    g.finish();
+}
+
 fn bench_render_cpu(c: &mut Criterion<CpuTime>) {
     if cpu_ns().is_none() {
         eprintln!("eval_render_cpu_time: no /proc/self/stat here, skipped");
@@ -373,7 +421,7 @@ impl ValueFormatter for CpuFormatter {
     }
 }
 
-criterion_group!(benches, bench_render);
+criterion_group!(benches, bench_render, bench_deep_zoom);
 criterion_group! {
     name = cpu;
     config = Criterion::default().with_measurement(CpuTime);
