@@ -252,6 +252,25 @@ fn deep_zoom_fills_a_window_the_plain_game_cannot_reach() {
         },
     );
     assert_eq!(again.values, w.values);
+
+    // Six maps of scale 0.95 overlap so much that a 64× window would need billions of
+    // words: the render falls back to the plain game instead of failing.
+    let maps: Vec<Affine2> = (0..6)
+        .map(|k| {
+            let a = k as f64 * std::f64::consts::FRAC_PI_3;
+            Affine2::similitude(0.95, a, false, [0.05 * a.cos(), 0.05 * a.sin()])
+        })
+        .collect();
+    let probs = vec![1.0 / 6.0; 6];
+    let cfg = RenderConfig {
+        zoom: Some(Zoom {
+            factor: 64.0,
+            center: None,
+        }),
+        ..base
+    };
+    let r = render(&maps, &probs, &cfg, None).unwrap();
+    assert!(r.stats.points_in_window > 0);
 }
 
 #[test]

@@ -478,6 +478,9 @@ pub fn zoom_strip(
             }),
             min_hits: 1_000_000,
             max_points: 200_000_000,
+            // The zoomed panels' points come through the code's words: the first round
+            // fills them, where the plain game needed up to 64² times the points.
+            deep_zoom: true,
             ..RenderConfig::default()
         };
         panels.push(render(maps, probs, &cfg, None)?);

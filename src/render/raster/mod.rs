@@ -36,7 +36,9 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::budget::{MemoryEstimate, check_memory, check_rate};
-use crate::chaos::{LANES, MapSampler, PointSink, PointStream, WindowWords, WordSink};
+use crate::chaos::{
+    LANES, MapSampler, PointSink, PointStream, WindowWords, WordSink, is_too_many_words,
+};
 use crate::error::{Error, Result};
 use crate::isa::Isa;
 use crate::model::affine::Map2;
@@ -88,8 +90,10 @@ pub struct RenderConfig {
     /// Draw a zoomed view of an affine code through the words of the code whose images
     /// meet the window ([`WindowWords`]): nearly every point lands in the window, so a zoom
     /// at any depth (to about 2⁴³) costs what the full view costs. The image has the plain
-    /// game's distribution, not its bits. Off by default in the library (the suites' zoomed
-    /// views were drawn without it); `ifslab render --zoom` turns it on.
+    /// game's distribution, not its bits. A code whose maps overlap so much that the window
+    /// needs more than [`DEEP_ZOOM_MAX_WORDS`] words is drawn the plain way. Off by default
+    /// in the library (the suites' zoomed views were drawn without it); `ifslab render
+    /// --zoom` and a run's zoom strip turn it on.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub deep_zoom: bool,
 }
@@ -467,9 +471,14 @@ fn deep_zoom_words<M: Map2>(
     let Some(affine) = maps.iter().map(Map2::affine).collect::<Option<Vec<_>>>() else {
         return Ok(None);
     };
-    // A window that misses the attractor is drawn the plain way: an empty view.
-    let words = WindowWords::new(&affine, probs, window, 0.5, DEEP_ZOOM_MAX_WORDS)?;
-    Ok(words.filter(|w| w.depth() > 0))
+    // A window that misses the attractor is drawn the plain way (an empty view), and so is
+    // one that would need too many words (maps that overlap heavily: a fitted code of many
+    // near-unit maps can need millions at 64×).
+    match WindowWords::new(&affine, probs, window, 0.5, DEEP_ZOOM_MAX_WORDS) {
+        Ok(words) => Ok(words.filter(|w| w.depth() > 0)),
+        Err(e) if is_too_many_words(&e) => Ok(None),
+        Err(e) => Err(e),
+    }
 }
 
 type RoundCounts = (u64, u64, u32, bool);
