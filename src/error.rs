@@ -137,6 +137,17 @@ pub enum Error {
     /// A job whose buffers would not fit the memory budget ([`crate::budget`]).
     #[error("{0}")]
     OverBudget(String),
+
+    /// A zoom window that needs more words of the code than allowed
+    /// ([`crate::chaos::WindowWords`]); the evaluation renderer then draws it the plain way.
+    #[error(
+        "the zoom window needs more than {max_words} words of the code (the maps overlap a lot \
+         there, or the window is deeper than f64 resolves): zoom less deep or allow more words"
+    )]
+    TooManyWords {
+        /// The limit that was reached.
+        max_words: usize,
+    },
 }
 
 impl Error {

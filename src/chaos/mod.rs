@@ -29,4 +29,4 @@ pub use game::{ChaosGame, DIVERGENCE_BOUND, Points, Trajectory, bbox, generate_n
 pub use rng::{mix_seed, trajectory_rng};
 pub use sampler::MapSampler;
 pub use stream::{LANES, PointSink, PointStream};
-pub use zoom::{WindowWords, WordSink, is_too_many_words};
+pub use zoom::{WindowWords, WordSink};

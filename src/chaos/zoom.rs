@@ -59,9 +59,9 @@ impl WindowWords {
     /// each no larger than `refine` times the window's longer side (0.5 is a good choice:
     /// a kept word's image is about half the window, so most of its points land inside).
     /// `None` when the window misses the attractor (an empty view, not an error). An error
-    /// if the code is not contractive or `window` is empty or not finite, and one that
-    /// [`is_too_many_words`] recognises if more than `max_words` words would be kept (or
-    /// eight times as many looked at).
+    /// if the code is not contractive or `window` is empty or not finite, and
+    /// [`Error::TooManyWords`] if more than `max_words` words would be kept (or eight times
+    /// as many looked at).
     pub fn new(
         maps: &[Affine2],
         probs: &[f64],
@@ -106,7 +106,7 @@ impl WindowWords {
         while let Some(node) = stack.pop() {
             visited += 1;
             if visited > max_words.saturating_mul(8) {
-                return Err(too_many(max_words));
+                return Err(Error::TooManyWords { max_words });
             }
             let c = apply(&node.map, centre);
             let r = node.map.sigma_max() * radius;
@@ -116,7 +116,7 @@ impl WindowWords {
             }
             if r <= stop || inside {
                 if kept.len() == max_words {
-                    return Err(too_many(max_words));
+                    return Err(Error::TooManyWords { max_words });
                 }
                 depth = depth.max(node.depth);
                 kept.push((node.map, node.log_p));
@@ -204,24 +204,6 @@ impl<S: PointSink> PointSink for WordSink<'_, S> {
     fn put(&mut self, p: [f64; 2]) {
         self.inner.put(self.words.map(p))
     }
-}
-
-/// The error of a window that needs more words than allowed: the parameter `max_words`, so a
-/// caller can tell it from a bad code or window (the renderer then draws the plain way).
-fn too_many(max_words: usize) -> Error {
-    Error::param(
-        "max_words",
-        format!(
-            "the zoom window needs more than {max_words} words of the code (the maps overlap \
-             a lot there, or the window is deeper than f64 resolves): zoom less deep or allow \
-             more words"
-        ),
-    )
-}
-
-/// Whether `e` is [`WindowWords::new`]'s "more words than allowed".
-pub fn is_too_many_words(e: &Error) -> bool {
-    matches!(e, Error::InvalidParameter { name, .. } if *name == "max_words")
 }
 
 /// A disk every map sends into itself (see the module docs).
@@ -426,7 +408,7 @@ mod tests {
         let deep = square(on_attractor(&maps), 1e-9);
         let e = WindowWords::new(&maps, &probs, &deep, 1e-6, 50).unwrap_err();
         assert!(e.to_string().contains("more than 50 words"), "{e}");
-        assert!(is_too_many_words(&e));
+        assert!(matches!(e, Error::TooManyWords { max_words: 50 }));
         let mut big = maps.clone();
         big[0].m *= 2.5;
         let e = WindowWords::new(&big, &probs, &square([0.5, 0.5], 1.0), 0.5, 100).unwrap_err();

@@ -36,9 +36,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::budget::{MemoryEstimate, check_memory, check_rate};
-use crate::chaos::{
-    LANES, MapSampler, PointSink, PointStream, WindowWords, WordSink, is_too_many_words,
-};
+use crate::chaos::{LANES, MapSampler, PointSink, PointStream, WindowWords, WordSink};
 use crate::error::{Error, Result};
 use crate::isa::Isa;
 use crate::model::affine::Map2;
@@ -476,7 +474,7 @@ fn deep_zoom_words<M: Map2>(
     // near-unit maps can need millions at 64×).
     match WindowWords::new(&affine, probs, window, 0.5, DEEP_ZOOM_MAX_WORDS) {
         Ok(words) => Ok(words.filter(|w| w.depth() > 0)),
-        Err(e) if is_too_many_words(&e) => Ok(None),
+        Err(Error::TooManyWords { .. }) => Ok(None),
         Err(e) => Err(e),
     }
 }
