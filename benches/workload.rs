@@ -24,7 +24,6 @@
 use std::hint::black_box;
 
 use candle_core::{DType, Device, Tensor, Var};
-use ifslab::chaos::ChaosGame;
 use ifslab::loss::{ImageLoss, LossConfig, MsMse, Objective};
 use ifslab::model::Svd;
 use ifslab::model::flame::read_flames;
@@ -83,22 +82,7 @@ fn main() {
     }
     let (stage, cfg) = match stage.strip_prefix("demo-") {
         // `ifslab demo`'s splat (BENCHMARKS.md §2, "demo setting").
-        Some(s) => (
-            s,
-            SplatConfig {
-                width: 96,
-                height: 96,
-                supersample: 4,
-                sigma: 1.0,
-                blend: Blend::Coverage,
-                game: ChaosGame {
-                    trajectories: 1000,
-                    length: 110,
-                    ..ChaosGame::default()
-                },
-                ..SplatConfig::default()
-            },
-        ),
+        Some(s) => (s, demo_splat_config()),
         None => (
             stage,
             SplatConfig {
@@ -189,7 +173,7 @@ fn flame(stage: &str, calls: usize) {
 /// One gradient step of a learnable flame: 8 generators (spherical, handkerchief, swirl,
 /// polar, disc, sinusoidal, julia-free trigonometric ones) at 100², 200 × 200 samples.
 fn flame_learn(calls: usize) {
-    let (st, cfg, target) = learnable_flame_fixture();
+    let (st, cfg, target) = learnable_flame_fixture(&eight_generators(), workload_flame_config());
     let start = std::time::Instant::now();
     let mut sink = 0usize;
     for call in 0..calls {

@@ -4,6 +4,43 @@
 // and pin the same scenes. Included with `include!`; paths are written out so the including
 // file needs no imports for them.
 
+/// `(stage, calls)` from a workload's command line (`cargo bench` passes `--bench`, which
+/// is skipped); no arguments, as under `cargo bench`, is one cheap `setup` pass.
+#[allow(dead_code)]
+fn stage_and_calls(usage: &str) -> (String, usize) {
+    let args: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with("--"))
+        .collect();
+    match args.as_slice() {
+        [s, n] => (
+            s.clone(),
+            n.parse::<usize>().expect("calls: a whole number"),
+        ),
+        [] => ("setup".to_string(), 0),
+        _ => panic!("usage: {usage}"),
+    }
+}
+
+/// `ifslab demo`'s splat (BENCHMARKS.md §2, "demo setting"): 96², 4× supersampling, σ 1,
+/// 1000 × 110 points.
+#[allow(dead_code)]
+fn demo_splat_config() -> ifslab::render::splat::SplatConfig {
+    ifslab::render::splat::SplatConfig {
+        width: 96,
+        height: 96,
+        supersample: 4,
+        sigma: 1.0,
+        blend: ifslab::render::splat::Blend::Coverage,
+        game: ifslab::chaos::ChaosGame {
+            trajectories: 1000,
+            length: 110,
+            ..ifslab::chaos::ChaosGame::default()
+        },
+        ..ifslab::render::splat::SplatConfig::default()
+    }
+}
+
 /// A random code of `n` maps (seed 3) and, as SVD θ, the same code with its offsets shrunk
 /// by 10 %: the image scene (the code draws the target, the shrunk code is the start).
 #[allow(dead_code)]
@@ -68,21 +105,12 @@ fn koch_sdf_fixture(side: usize, depth: usize) -> KochSdfFixture {
     }
 }
 
+/// The workloads' learnable-flame layer: 8 generators (spherical, handkerchief, swirl,
+/// polar, disc, sinusoidal, linear + exponential, linear).
 #[allow(dead_code)]
-/// One learnable-flame layer of 8 generators (spherical, handkerchief, swirl, polar, disc,
-/// sinusoidal, linear + exponential, linear) over white at 100², 200 × 200 samples, and a
-/// fixed pseudo-random RGB target.
-fn learnable_flame_fixture() -> (
-    ifslab::model::flame::learnable::FlameStack,
-    ifslab::render::flame_diff::DiffFlameConfig,
-    Vec<f32>,
-) {
+fn eight_generators() -> Vec<Vec<ifslab::model::flame::VariationKind>> {
     use ifslab::model::flame::VariationKind as V;
-    use ifslab::model::flame::learnable::{
-        Background, FlameStack, Learn, LearnableFlame, LearnableInit,
-    };
-    use ifslab::render::flame_diff::DiffFlameConfig;
-    let vars = [
+    vec![
         vec![V::Spherical],
         vec![V::Handkerchief],
         vec![V::Swirl],
@@ -91,20 +119,41 @@ fn learnable_flame_fixture() -> (
         vec![V::Sinusoidal],
         vec![V::Linear, V::Exponential],
         vec![V::Linear],
-    ];
-    let layer = LearnableFlame::random(&vars, Learn::default(), &LearnableInit::default(), 7)
+    ]
+}
+
+/// One learnable-flame layer of `vars` (seed 7) over white, drawn with `cfg`, and a fixed
+/// pseudo-random RGB target of `cfg`'s size.
+#[allow(dead_code)]
+fn learnable_flame_fixture(
+    vars: &[Vec<ifslab::model::flame::VariationKind>],
+    cfg: ifslab::render::flame_diff::DiffFlameConfig,
+) -> (
+    ifslab::model::flame::learnable::FlameStack,
+    ifslab::render::flame_diff::DiffFlameConfig,
+    Vec<f32>,
+) {
+    use ifslab::model::flame::learnable::{
+        Background, FlameStack, Learn, LearnableFlame, LearnableInit,
+    };
+    let layer = LearnableFlame::random(vars, Learn::default(), &LearnableInit::default(), 7)
         .expect("a random flame");
     let st = FlameStack {
         layers: vec![layer],
         background: Background::Fixed([1.0; 3]),
     };
-    let cfg = DiffFlameConfig {
-        trajectories: 200,
-        steps: 200,
-        ..DiffFlameConfig::default()
-    };
     let target: Vec<f32> = (0..3 * cfg.size * cfg.size)
         .map(|i| ((i * 7919) % 101) as f32 / 100.0)
         .collect();
     (st, cfg, target)
+}
+
+/// The workloads' flame setting: 100² (the default size), 200 × 200 samples.
+#[allow(dead_code)]
+fn workload_flame_config() -> ifslab::render::flame_diff::DiffFlameConfig {
+    ifslab::render::flame_diff::DiffFlameConfig {
+        trajectories: 200,
+        steps: 200,
+        ..ifslab::render::flame_diff::DiffFlameConfig::default()
+    }
 }

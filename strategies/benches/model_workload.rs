@@ -29,18 +29,7 @@ include!("../../benches/common/fixtures.rs");
 static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 fn main() {
-    let args: Vec<String> = std::env::args()
-        .skip(1)
-        .filter(|a| !a.starts_with("--"))
-        .collect();
-    let (stage, calls) = match args.as_slice() {
-        [s, n] => (
-            s.clone(),
-            n.parse::<usize>().expect("calls: a whole number"),
-        ),
-        [] => ("setup".to_string(), 0),
-        _ => panic!("usage: model_workload <setup|direct|model> <calls>"),
-    };
+    let (stage, calls) = stage_and_calls("model_workload <setup|direct|model> <calls>");
     let cfg = SplatConfig {
         width: 256,
         height: 256,

@@ -17,10 +17,9 @@
 
 use std::hint::black_box;
 
-use ifslab::chaos::ChaosGame;
 use ifslab::loss::LossConfig;
 use ifslab::model::Svd;
-use ifslab::render::splat::{self, Blend, SplatConfig};
+use ifslab::render::splat;
 use ifslab_strategies::driver::Differentiable;
 use ifslab_strategies::problems::flame::{FlameLoss, FlameProblem, Rates};
 use ifslab_strategies::problems::image::{AffineModel, ImageProblem};
@@ -32,18 +31,7 @@ include!("../../benches/common/fixtures.rs");
 static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 fn main() {
-    let args: Vec<String> = std::env::args()
-        .skip(1)
-        .filter(|a| !a.starts_with("--"))
-        .collect();
-    let (stage, calls) = match args.as_slice() {
-        [s, n] => (
-            s.clone(),
-            n.parse::<usize>().expect("calls: a whole number"),
-        ),
-        [] => ("setup".to_string(), 0),
-        _ => panic!("usage: problem_workload <setup|image|sdf|flame> <calls>"),
-    };
+    let (stage, calls) = stage_and_calls("problem_workload <setup|image|sdf|flame> <calls>");
     let (problem, theta): (Box<dyn Differentiable>, Vec<f64>) = match stage.as_str() {
         "image" | "setup" => image(),
         "sdf" => sdf(),
@@ -63,19 +51,7 @@ fn main() {
 }
 
 fn image() -> (Box<dyn Differentiable>, Vec<f64>) {
-    let cfg = SplatConfig {
-        width: 96,
-        height: 96,
-        supersample: 4,
-        sigma: 1.0,
-        blend: Blend::Coverage,
-        game: ChaosGame {
-            trajectories: 1000,
-            length: 110,
-            ..ChaosGame::default()
-        },
-        ..SplatConfig::default()
-    };
+    let cfg = demo_splat_config();
     let (truth, theta) = shrunk_code(10);
     let p = Svd::default();
     let (target, _) = splat::forward::<f32>(&cfg, &truth, 99).expect("forward");
@@ -112,7 +88,7 @@ fn sdf() -> (Box<dyn Differentiable>, Vec<f64>) {
 }
 
 fn flame() -> (Box<dyn Differentiable>, Vec<f64>) {
-    let (st, cfg, target) = learnable_flame_fixture();
+    let (st, cfg, target) = learnable_flame_fixture(&eight_generators(), workload_flame_config());
     let theta = st.params();
     let problem = FlameProblem::new(
         st,

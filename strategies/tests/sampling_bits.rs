@@ -8,9 +8,6 @@ use ifslab::chaos::ChaosGame;
 use ifslab::loss::LossConfig;
 use ifslab::model::Svd;
 use ifslab::model::flame::VariationKind as V;
-use ifslab::model::flame::learnable::{
-    Background, FlameStack, Learn, LearnableFlame, LearnableInit,
-};
 use ifslab::render::flame_diff::DiffFlameConfig;
 use ifslab::render::splat::{self, Blend, SplatConfig};
 use ifslab_strategies::driver::Differentiable;
@@ -108,21 +105,15 @@ fn sdf_problem_keeps_its_bits() {
 #[test]
 fn flame_problem_keeps_its_bits() {
     let vars = [vec![V::Spherical], vec![V::Swirl], vec![V::Linear]];
-    let layer = LearnableFlame::random(&vars, Learn::default(), &LearnableInit::default(), 7)
-        .expect("a random flame");
-    let st = FlameStack {
-        layers: vec![layer],
-        background: Background::Fixed([1.0; 3]),
-    };
-    let cfg = DiffFlameConfig {
-        size: 24,
-        trajectories: 40,
-        steps: 40,
-        ..DiffFlameConfig::default()
-    };
-    let target: Vec<f32> = (0..3 * cfg.size * cfg.size)
-        .map(|i| ((i * 7919) % 101) as f32 / 100.0)
-        .collect();
+    let (st, cfg, target) = learnable_flame_fixture(
+        &vars,
+        DiffFlameConfig {
+            size: 24,
+            trajectories: 40,
+            steps: 40,
+            ..DiffFlameConfig::default()
+        },
+    );
     let theta = st.params();
     let problem = FlameProblem::new(
         st,
