@@ -148,6 +148,11 @@ pub enum Error {
         /// The limit that was reached.
         max_words: usize,
     },
+
+    /// A camera that cannot take a picture (a degenerate pose, no field of view, a
+    /// non-finite number) or views that do not go together (images of different sizes).
+    #[error("invalid camera: {0}")]
+    Camera(String),
 }
 
 impl Error {

@@ -16,7 +16,8 @@
 //! - [`render`]: the fast evaluation renderer (tens of millions of points at any zoom);
 //! - [`loss`]: image losses (multi-scale MSE, D-SSIM, moments, LPIPS) on grey or colour
 //!   images and the map regulariser, each with its gradient, composable as candle tensors;
-//! - [`metrics`]: IoU, box-counting dimension and friends.
+//! - [`metrics`]: IoU, box-counting dimension and friends; [`metrics3d`]: voxel IoU with a
+//!   tolerance and Chamfer distance of 3-D point sets.
 //!
 //! Strategies live in the `ifslab-strategies` crate and the `ifslab` command in
 //! `ifslab-experiments`.
@@ -32,6 +33,7 @@ pub mod isa;
 pub mod loss;
 pub mod math;
 pub mod metrics;
+pub mod metrics3d;
 pub mod model;
 pub mod progress;
 pub mod render;

@@ -14,6 +14,8 @@
 //! - [`random`]: the Anderson–Farrell random-code sampler.
 //! - [`segment`]: segment maps — control points and a symmetry pattern of segment pairs,
 //!   each pair a similitude (Scott's differentiable IFS), with the chain rule to the points.
+//! - [`map3`]: maps of space (affine, the SVD parameterisation in 3-D, similitudes) with
+//!   their vector–Jacobian products, what the multi-view splat trains.
 //! - [`flame`]: fractal flames — flam3's 99 variations, transforms with exact Jacobians,
 //!   `.flame` files.
 
@@ -22,6 +24,7 @@ pub mod code;
 pub mod diff_map;
 pub mod flame;
 pub mod library;
+pub mod map3;
 pub mod param;
 pub mod probs;
 pub mod random;

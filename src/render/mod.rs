@@ -10,6 +10,10 @@
 //! - [`splat`]: the differentiable Gaussian point splatter (fused chaos game + splat with a
 //!   hand-written reverse pass), also as a candle `CustomOp1`.
 //!
+//! - [`splat3d`]: the differentiable multi-view splat — a 3-D chaos game projected by
+//!   cameras (pinhole or orthographic, NeRF poses, turntables, `transforms.json`) and
+//!   splatted per view by the 2-D splat's kernel, with its reverse pass to the maps.
+//!
 //! - [`flame`]: the fractal flame renderer (flam3's algorithm: colour + density
 //!   histogram, density estimation, log tone map), deterministic and parallel.
 //! - [`flame_diff`]: the differentiable flame pipeline of *Learnable Fractal Flames*
@@ -19,9 +23,9 @@
 //!   nearest primitive of every word up to depth K, tiled branch-and-bound over the word
 //!   tree, reverse pass to the control points).
 //!
-//! The three differentiable renderers — [`splat::Splat`], [`sdf::SdfRenderer`],
-//! [`flame_diff::FlameRenderer`] — implement one trait, [`Renderer`] (scene and sampling
-//! state → image, `∂L/∂image` → `∂L/∂θ`; [`renderer`]).
+//! The differentiable renderers — [`splat::Splat`], [`sdf::SdfRenderer`],
+//! [`flame_diff::FlameRenderer`], [`splat3d::MultiViewSplat`] — implement one trait,
+//! [`Renderer`] (scene and sampling state → image, `∂L/∂image` → `∂L/∂θ`; [`renderer`]).
 
 pub mod flame;
 pub mod flame_diff;
@@ -30,6 +34,7 @@ pub mod raster;
 pub mod renderer;
 pub mod sdf;
 pub mod splat;
+pub mod splat3d;
 pub mod view;
 
 pub use raster::{Raster, RenderConfig, RenderMode, RenderStats, render, render_with_isa};
