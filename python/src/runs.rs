@@ -1,0 +1,84 @@
+//! Runs through the run API the command line and the sweeps call: a config ([`RunConfig`],
+//! from a dict or a TOML file) run into a folder by [`RunConfig::run`], with the GIL
+//! released, progress reported to Python and Ctrl-C stopping the run at its next checkpoint.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use ifslab_experiments::runs::RunConfig;
+use ifslab_experiments::runs::inversion::CONFIG_FILE;
+use pyo3::prelude::*;
+
+use crate::errors::IntoPy;
+use crate::progress::PyProgress;
+
+/// Where a config dict comes from, in error messages (relative file names in it are read
+/// from the working folder).
+const DICT_ORIGIN: &str = "the Python config";
+
+/// The config of a run: `config` is JSON text of a config table (`source = "dict"`), the
+/// name of a TOML file (`"file"`, `overrides` as `ifslab run --set` takes them), or a run
+/// folder to resume (`"resume"`: its resolved `config.toml`).
+fn config_of(source: &str, config: &str, overrides: &[String]) -> anyhow::Result<RunConfig> {
+    match source {
+        "dict" => {
+            let value: serde_json::Value =
+                serde_json::from_str(config).context("the config dict is not JSON")?;
+            let mut table = toml::Table::try_from(value)
+                .context("the config dict does not fit a TOML table")?;
+            for o in overrides {
+                let (key, value) = ifslab_experiments::runs::config::parse_override(o)?;
+                ifslab_experiments::sweep::expand::set_dotted(&mut table, &key, value)
+                    .with_context(|| format!("applying `{o}`"))?;
+            }
+            RunConfig::from_table(table, Path::new(DICT_ORIGIN))
+        }
+        "file" => RunConfig::load_with(Path::new(config), overrides),
+        "resume" => {
+            let dir = Path::new(config);
+            RunConfig::load_resolved(&dir.join(CONFIG_FILE))
+                .with_context(|| format!("reading the run in {}", dir.display()))
+        }
+        other => anyhow::bail!("unknown config source `{other}`"),
+    }
+}
+
+/// The resolved config (every default written out) of a config, as JSON text: what a run
+/// folder's `config.toml` will hold.
+#[pyfunction]
+#[pyo3(signature = (source, config, overrides=Vec::new()))]
+pub fn resolve_config(source: &str, config: &str, overrides: Vec<String>) -> PyResult<String> {
+    let cfg = config_of(source, config, &overrides).py()?;
+    let table = cfg.to_table().py()?;
+    serde_json::to_string(&table).py()
+}
+
+/// Runs a config (see [`config_of`]) into `dir` (with `resume`, continues the interrupted
+/// run there); the [`RunReport`](ifslab_experiments::runs::RunReport) as JSON text.
+#[pyfunction]
+#[pyo3(signature = (source, config, dir, resume=false, overrides=Vec::new(), progress=None))]
+pub fn run(
+    py: Python<'_>,
+    source: &str,
+    config: &str,
+    dir: PathBuf,
+    resume: bool,
+    overrides: Vec<String>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<String> {
+    let cfg = config_of(source, config, &overrides).py()?;
+    if ifslab::interrupt::requested() {
+        // The library's stop flag has no reset yet: a run now would stop at its first
+        // checkpoint.
+        return Err(crate::errors::IfslabError::new_err(
+            "an earlier run in this Python process was interrupted, and the library's stop \
+             flag stays set for the rest of the process: start a new Python process to run \
+             again (the interrupted run continues with resume=its folder)",
+        ));
+    }
+    let watch = PyProgress::new(progress, true);
+    let reporter = watch.boxed();
+    let report = py.detach(move || cfg.run(&dir, resume, reporter));
+    let report = watch.finish(report.py())?;
+    serde_json::to_string(&report).py()
+}

@@ -1,0 +1,62 @@
+"""Ctrl-C during a run stops it at the end of an iteration with its checkpoint, raises
+KeyboardInterrupt with the library's words, and the run resumes to the same bits as an
+uninterrupted one. Each interrupted run is its own Python process: the library's stop flag
+stays set for the rest of a process once a run was interrupted."""
+
+import subprocess
+import sys
+import textwrap
+
+import ifslab
+from conftest import without_seconds
+
+RUN = dict(maps=3, size=48, iterations=60, checkpoint_every=1000, init="em")
+
+INTERRUPTED = textwrap.dedent(
+    """
+    import os, signal, sys
+    import ifslab
+
+    def progress(event, value):
+        # A real SIGINT, as Ctrl-C sends it, once a few iterations are done.
+        if event == "position" and value >= 5:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    try:
+        ifslab.invert(sys.argv[2], output=sys.argv[1], progress=progress, **{RUN!r})
+    except KeyboardInterrupt as e:
+        print("KeyboardInterrupt:", e)
+        # A second run in this process is refused rather than stopped at once.
+        try:
+            ifslab.invert(sys.argv[2], output=sys.argv[1] + "-second", **{RUN!r})
+        except ifslab.IfslabError as e2:
+            print("second run refused:", e2)
+        sys.exit(3)
+    print("finished")
+    """
+).replace("{RUN!r}", repr(RUN))
+
+
+def python(code, *args):
+    return subprocess.run([sys.executable, "-c", code, *map(str, args)], capture_output=True, text=True)
+
+
+def test_ctrl_c_checkpoints_and_the_run_resumes_bit_identically(tmp_path):
+    target = tmp_path / "target.png"
+    ifslab.save_image(ifslab.render("sierpinski", size=96, points=1_000_000), target)
+    run_dir = tmp_path / "run"
+    done = python(INTERRUPTED, run_dir, target)
+    assert done.returncode == 3, done.stdout + done.stderr
+    assert "KeyboardInterrupt: interrupted after iteration" in done.stdout
+    assert "checkpoint is saved" in done.stdout
+    assert "second run refused: an earlier run in this Python process was interrupted" in done.stdout
+    assert (run_dir / "checkpoint.json").is_file()
+    assert not (run_dir / "summary.json").is_file()
+
+    resumed = python("import sys, ifslab; print(ifslab.invert(resume=sys.argv[1]).summary['iterations'])", run_dir)
+    assert resumed.returncode == 0, resumed.stderr
+    assert resumed.stdout.split()[-1] == "60"
+
+    whole = ifslab.invert(target, output=tmp_path / "whole", **RUN)
+    assert (run_dir / "code.json").read_bytes() == (whole.dir / "code.json").read_bytes()
+    assert without_seconds(run_dir / "log.csv") == without_seconds(whole.dir / "log.csv")

@@ -1,0 +1,82 @@
+"""The evaluation renderer from Python draws what `ifslab render` draws."""
+
+import numpy as np
+import pytest
+
+import ifslab
+
+
+def test_the_image_has_the_asked_shape_and_values_in_the_unit_interval():
+    image = ifslab.render("sierpinski", size=(64, 48), points=200_000)
+    assert image.shape == (48, 64)
+    assert image.dtype == np.float32
+    assert image.min() == 0.0 and image.max() == 1.0
+    # Coverage: the triangle covers some of the window, not all of it.
+    assert 0.05 < image.mean() < 0.9
+
+
+@pytest.mark.parametrize(
+    "options, flags",
+    [
+        ({}, []),
+        ({"supersample": 4}, ["--supersample", "4"]),
+        ({"density": True}, ["--density"]),
+        # Deep zoom through the code's words, as `render --zoom` draws it.
+        ({"zoom": 1024, "center": (0.5, 0.0)}, ["--zoom", "1024", "--center", "0.5,0"]),
+        ({"zoom": 8, "center": (0.25, 0.1), "plain_zoom": True}, ["--zoom", "8", "--center", "0.25,0.1", "--plain-zoom"]),
+    ],
+)
+def test_the_render_equals_the_command_lines_png(cli, tmp_path, options, flags):
+    png = tmp_path / "cli.png"
+    cli(["render", "fern", "--size", "96", "--points", "300000", "--seed", "3", "-o", png, *flags])
+    image = ifslab.render("fern", size=96, points=300_000, seed=3, **options)
+    from_cli = ifslab.load_image(png)
+    assert from_cli.shape == image.shape
+    # The PNG holds round(255 v).
+    np.testing.assert_array_equal(np.round(image * 255) / 255, np.round(from_cli * 255) / 255)
+    assert image.max() > 0
+
+
+def test_a_code_dict_a_file_and_a_name_render_the_same(tmp_path):
+    path = tmp_path / "fern.json"
+    ifslab.save_code("fern", path)
+    by_name = ifslab.render("fern", size=32, points=50_000)
+    np.testing.assert_array_equal(by_name, ifslab.render(path, size=32, points=50_000))
+    np.testing.assert_array_equal(by_name, ifslab.render(ifslab.load_code(path), size=32, points=50_000))
+
+
+def test_a_zoom_at_two_to_the_twenty_still_finds_points():
+    image, stats = ifslab.render_with_stats(
+        "sierpinski", size=64, points=500_000, zoom=2.0**20, center=(0.5, 0.0)
+    )
+    assert stats["points_in_window"] > 100_000
+    assert image.mean() > 0.05
+
+
+def test_a_window_beside_the_attractor_is_an_error_unless_allowed():
+    with pytest.raises(ifslab.IfslabError, match="none of the .* points landed in the window"):
+        ifslab.render("sierpinski", size=32, points=10_000, zoom=64, center=(50.0, 50.0), plain_zoom=True)
+    empty = ifslab.render(
+        "sierpinski", size=32, points=10_000, zoom=64, center=(50.0, 50.0), plain_zoom=True, allow_empty=True
+    )
+    assert empty.shape == (32, 32) and empty.max() == 0.0
+
+
+def test_progress_reaches_the_callback():
+    events = []
+    _, stats = ifslab.render_with_stats(
+        "fern", size=64, points=2_000_000, progress=lambda e, v: events.append((e, v))
+    )
+    assert events[0] == ("length", 2_000_000)
+    positions = [v for e, v in events if e == "position"]
+    assert positions == sorted(positions)
+    # The last position is reported however soon it follows the one before.
+    assert positions[-1] == stats["points_generated"] >= 2_000_000
+
+
+def test_an_exception_in_the_callback_is_raised_after_the_render():
+    def boom(event, value):
+        raise ValueError("from the callback")
+
+    with pytest.raises(ValueError, match="from the callback"):
+        ifslab.render("fern", size=32, points=100_000, progress=boom)
