@@ -8,7 +8,8 @@ nothing otherwise).
 
 from __future__ import annotations
 
-from typing import Any, Callable, Optional
+import contextlib
+from typing import Any, Callable, Iterator, Optional
 
 Callback = Callable[[str, Any], None]
 
@@ -26,16 +27,24 @@ class _Tqdm:
             if self._bar is not None:
                 self._bar.close()
             self._bar = self._tqdm(total=length or None, unit=" " + what if what else "it")
+        elif event == "length":
+            # Some work announces its length only (a render's points).
+            if self._bar is None:
+                self._bar = self._tqdm(total=value)
+            else:
+                self._bar.total = value
+                self._bar.refresh()
         elif self._bar is None:
             return
-        elif event == "length":
-            self._bar.total = value
-            self._bar.refresh()
         elif event == "position":
             self._bar.update(value - self._bar.n)
         elif event == "message":
             self._bar.set_postfix_str(value)
         elif event == "finish":
+            self.close()
+
+    def close(self) -> None:
+        if self._bar is not None:
             self._bar.close()
             self._bar = None
 
@@ -53,3 +62,15 @@ def adapt(progress: Any) -> Optional[Callback]:
     if callable(progress):
         return progress
     raise TypeError("progress is a callable(event, value), True (tqdm) or None")
+
+
+@contextlib.contextmanager
+def reporting(progress: Any) -> Iterator[Optional[Callback]]:
+    """:func:`adapt`, with a tqdm bar closed when the work ends (some work announces no
+    end of its own)."""
+    callback = adapt(progress)
+    try:
+        yield callback
+    finally:
+        if isinstance(callback, _Tqdm):
+            callback.close()

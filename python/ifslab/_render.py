@@ -9,7 +9,7 @@ import numpy as np
 
 from . import _ifslab
 from ._code import CodeLike, code_arg
-from ._progress import adapt
+from ._progress import reporting
 
 Size = Union[int, Tuple[int, int]]
 
@@ -42,24 +42,25 @@ def render_with_stats(
     window, seconds) as a dict."""
     text, is_json = code_arg(code)
     width, height = _size(size)
-    image, stats = _ifslab.render(
-        text,
-        is_json,
-        width,
-        height,
-        int(points),
-        int(supersample),
-        bool(density),
-        None if zoom is None else float(zoom),
-        None if center is None else [float(center[0]), float(center[1])],
-        int(seed),
-        int(min_hits),
-        int(max_points),
-        None if time_limit is None else float(time_limit),
-        bool(plain_zoom),
-        bool(allow_empty),
-        adapt(progress),
-    )
+    with reporting(progress) as callback:
+        image, stats = _ifslab.render(
+            text,
+            is_json,
+            width,
+            height,
+            int(points),
+            int(supersample),
+            bool(density),
+            None if zoom is None else float(zoom),
+            None if center is None else [float(center[0]), float(center[1])],
+            int(seed),
+            int(min_hits),
+            int(max_points),
+            None if time_limit is None else float(time_limit),
+            bool(plain_zoom),
+            bool(allow_empty),
+            callback,
+        )
     return image, json.loads(stats)
 
 

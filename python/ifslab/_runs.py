@@ -18,7 +18,7 @@ import numpy as np
 from . import _ifslab
 from ._code import code_arg
 from ._images import load_image, save_image
-from ._progress import adapt
+from ._progress import reporting
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -154,7 +154,8 @@ def _run(
     progress: Any,
     overrides: Iterable[str] = (),
 ) -> Result:
-    report = _ifslab.run(source, config, os.fspath(dir), resume, list(overrides), adapt(progress))
+    with reporting(progress) as callback:
+        report = _ifslab.run(source, config, os.fspath(dir), resume, list(overrides), callback)
     return _result(dir, json.loads(report))
 
 

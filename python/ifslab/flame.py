@@ -10,7 +10,7 @@ from typing import Any, Dict, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from . import _ifslab
-from ._progress import adapt
+from ._progress import reporting
 from ._runs import PathLike, Result, _Inputs, _merge, run
 
 __all__ = ["learn", "render", "render_with_stats"]
@@ -31,18 +31,19 @@ def render_with_stats(
     """:func:`render`, and the render's statistics (samples, hits, bad values, seconds)."""
     source = os.fspath(flame)
     is_text = "<flame" in source
-    image, stats = _ifslab.flame_render(
-        source,
-        is_text,
-        name,
-        int(index),
-        None if size is None else [int(size[0]), int(size[1])],
-        None if quality is None else float(quality),
-        None if supersample is None else int(supersample),
-        int(seed),
-        bool(transparent),
-        adapt(progress),
-    )
+    with reporting(progress) as callback:
+        image, stats = _ifslab.flame_render(
+            source,
+            is_text,
+            name,
+            int(index),
+            None if size is None else [int(size[0]), int(size[1])],
+            None if quality is None else float(quality),
+            None if supersample is None else int(supersample),
+            int(seed),
+            bool(transparent),
+            callback,
+        )
     return image, json.loads(stats)
 
 

@@ -33,8 +33,9 @@ def cli():
         pytest.skip(f"no ifslab binary at {path} (cargo build --profile ci -p ifslab-experiments)")
 
     def run(args: List[str], check: bool = True, cwd=None) -> subprocess.CompletedProcess:
+        env = dict(os.environ, RUST_BACKTRACE="0")
         done = subprocess.run(
-            [str(path), *map(str, args)], capture_output=True, text=True, cwd=cwd
+            [str(path), *map(str, args)], capture_output=True, text=True, cwd=cwd, env=env
         )
         if check and done.returncode != 0:
             raise AssertionError(f"ifslab {' '.join(map(str, args))} failed:\n{done.stderr}")
@@ -45,7 +46,7 @@ def cli():
 
 def cli_error_lines(stderr: str) -> List[str]:
     """The lines of the error the binary printed (anyhow's `Error: …` and its causes)."""
-    text = stderr[stderr.index("Error: ") + len("Error: ") :]
+    text = stderr[stderr.index("Error: ") + len("Error: ") :].split("Stack backtrace:")[0]
     lines = [l.strip() for l in text.splitlines()]
     return [l.split(": ", 1)[1] if l[:1].isdigit() and ": " in l else l for l in lines if l and l != "Caused by:"]
 

@@ -16,20 +16,20 @@ def test_the_image_has_the_asked_shape_and_values_in_the_unit_interval():
 
 
 @pytest.mark.parametrize(
-    "options, flags",
+    "code, options, flags",
     [
-        ({}, []),
-        ({"supersample": 4}, ["--supersample", "4"]),
-        ({"density": True}, ["--density"]),
-        # Deep zoom through the code's words, as `render --zoom` draws it.
-        ({"zoom": 1024, "center": (0.5, 0.0)}, ["--zoom", "1024", "--center", "0.5,0"]),
-        ({"zoom": 8, "center": (0.25, 0.1), "plain_zoom": True}, ["--zoom", "8", "--center", "0.25,0.1", "--plain-zoom"]),
+        ("fern", {}, []),
+        ("fern", {"supersample": 4}, ["--supersample", "4"]),
+        ("fern", {"density": True}, ["--density"]),
+        # Deep zoom through the code's words, as `render --zoom` draws it, at a vertex.
+        ("sierpinski", {"zoom": 1024, "center": (0.5, 0.0)}, ["--zoom", "1024", "--center", "0.5,0"]),
+        ("sierpinski", {"zoom": 8, "center": (0.25, 0.1), "plain_zoom": True}, ["--zoom", "8", "--center", "0.25,0.1", "--plain-zoom"]),
     ],
 )
-def test_the_render_equals_the_command_lines_png(cli, tmp_path, options, flags):
+def test_the_render_equals_the_command_lines_png(cli, tmp_path, code, options, flags):
     png = tmp_path / "cli.png"
-    cli(["render", "fern", "--size", "96", "--points", "300000", "--seed", "3", "-o", png, *flags])
-    image = ifslab.render("fern", size=96, points=300_000, seed=3, **options)
+    cli(["render", code, "--size", "96", "--points", "300000", "--seed", "3", "-o", png, *flags])
+    image = ifslab.render(code, size=96, points=300_000, seed=3, **options)
     from_cli = ifslab.load_image(png)
     assert from_cli.shape == image.shape
     # The PNG holds round(255 v).
@@ -80,3 +80,41 @@ def test_an_exception_in_the_callback_is_raised_after_the_render():
 
     with pytest.raises(ValueError, match="from the callback"):
         ifslab.render("fern", size=32, points=100_000, progress=boom)
+
+
+def test_progress_true_draws_a_tqdm_bar_where_tqdm_is_installed(monkeypatch):
+    """With a stand-in tqdm module: the bar gets the render's length, reaches its points
+    and is closed when the render returns."""
+    import sys
+    import types
+
+    bars = []
+
+    class Bar:
+        def __init__(self, total=None, **kwargs):
+            self.total, self.n, self.closed = total, 0, False
+            bars.append(self)
+
+        def update(self, k):
+            self.n += k
+
+        def refresh(self):
+            pass
+
+        def set_postfix_str(self, s):
+            pass
+
+        def close(self):
+            self.closed = True
+
+    tqdm = types.ModuleType("tqdm")
+    auto = types.ModuleType("tqdm.auto")
+    auto.tqdm = Bar
+    tqdm.auto = auto
+    monkeypatch.setitem(sys.modules, "tqdm", tqdm)
+    monkeypatch.setitem(sys.modules, "tqdm.auto", auto)
+    _, stats = ifslab.render_with_stats("fern", size=32, points=1_000_000, progress=True)
+    assert len(bars) == 1
+    assert bars[0].total == 1_000_000
+    assert bars[0].n == stats["points_generated"]
+    assert bars[0].closed
