@@ -254,6 +254,7 @@ def invert(
         "init": "model.init",
         "start_size": "model.start_size",
         "collage_refine": "model.collage_refine",
+        "cells": "target.cells",
         "trajectories": "generator.trajectories",
         "length": "generator.length",
         "supersample": "renderer.supersample",
