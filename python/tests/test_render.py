@@ -118,3 +118,17 @@ def test_progress_true_draws_a_tqdm_bar_where_tqdm_is_installed(monkeypatch):
     assert bars[0].total == 1_000_000
     assert bars[0].n == stats["points_generated"]
     assert bars[0].closed
+
+
+@pytest.mark.parametrize(
+    "options, words",
+    [
+        ({"zoom": float("nan")}, "invalid parameter `zoom`: factor must be finite and > 0, got NaN"),
+        ({"center": (float("nan"), 0.0)}, "invalid parameter `center`: must be finite"),
+        ({"zoom": 1e300}, "past double precision"),
+    ],
+)
+def test_a_nan_or_impossible_zoom_is_refused_with_the_librarys_words(options, words):
+    with pytest.raises(ifslab.IfslabError) as e:
+        ifslab.render("fern", size=16, points=1000, **options)
+    assert words in str(e.value)
