@@ -787,3 +787,60 @@ fn the_sierpinski_tetrahedron_is_four_half_scale_maps() {
         assert!((0..3).all(|k| (f[k] - v[k]).abs() < 1e-15));
     }
 }
+
+/// A code of space is written as an `ifslab-code/1` file with `"dim": 3` and read back
+/// exactly; a 2-D code and a non-contractive map are refused.
+#[test]
+fn codes_of_space_go_through_code_files() {
+    use ifslab::model::IfsCode;
+    let maps = sierpinski_tetrahedron();
+    let code = Affine3::to_code(Some("sierpinski-tetrahedron"), &maps).unwrap();
+    let text = code.to_json();
+    assert!(text.contains("\"dim\": 3"), "{text}");
+    let back = IfsCode::from_json(&text, Path::new("tetra.json")).unwrap();
+    assert_eq!(Affine3::from_code(&back).unwrap(), maps);
+    let flat = IfsCode::from_affine2(
+        None,
+        &[ifslab::model::Affine2::new(0.5, 0.0, 0.0, 0.5, 0.0, 0.0)],
+    )
+    .unwrap();
+    assert!(
+        Affine3::from_code(&flat)
+            .unwrap_err()
+            .to_string()
+            .contains("2-dimensional")
+    );
+    let e = Affine3::to_code(None, &[Affine3::homothety(1.1, [0.0; 3])]).unwrap_err();
+    assert!(matches!(e, Error::NonContractive { index: 0, .. }), "{e}");
+}
+
+/// The 3-D fern: contractive maps, its attractor inside [−0.9, 0.9]³ with the stem along
+/// +z, and a code the SVD parameterisation encodes.
+#[test]
+fn the_3d_fern_stands_in_the_unit_cube() {
+    use ifslab::model::map3::fern_3d;
+    let (maps, probs) = fern_3d();
+    assert!(maps.iter().all(|m| m.sigma_max() < 0.86));
+    let pts = points3(&small_game(100, 1005), &maps, Some(&probs)).unwrap();
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for p in &pts {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    assert!(
+        lo.iter().chain(&hi).all(|v| v.abs() <= 0.9 + 1e-9),
+        "{lo:?} {hi:?}"
+    );
+    assert!(hi[2] - lo[2] > 1.5, "the stem is tall: {lo:?} {hi:?}");
+    assert!(
+        hi[0] - lo[0] < hi[2] - lo[2] && hi[1] - lo[1] > 0.05,
+        "{lo:?} {hi:?}"
+    );
+    let svd = SvdMap3::from_code(&maps, 1e-9).unwrap();
+    for (a, m) in maps.iter().zip(&svd) {
+        assert!((a.m - m.to_affine().m).abs().max() < 1e-8);
+        assert!((a.b - m.to_affine().b).abs().max() < 1e-9);
+    }
+}

@@ -3,6 +3,9 @@
 use nalgebra::{Matrix3, Vector3};
 
 use super::{DiffMap3, Map3};
+use crate::error::{Error, Result};
+use crate::model::AffineN;
+use crate::model::code::IfsCode;
 
 /// A 3-D affine map `x ↦ M·x + b`; its parameters are `M` row-major, then `b` (12).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -55,11 +58,52 @@ impl Affine3 {
 
     /// The map as the dimension-generic [`AffineN`](crate::model::AffineN) (code files,
     /// EM).
-    pub fn to_affine_n(&self) -> crate::model::AffineN {
-        crate::model::AffineN {
+    pub fn to_affine_n(&self) -> AffineN {
+        AffineN {
             m: nalgebra::DMatrix::from_fn(3, 3, |r, c| self.m[(r, c)]),
             b: nalgebra::DVector::from_column_slice(self.b.as_slice()),
         }
+    }
+
+    /// The 3-D map of a dimension-generic one; refuses another dimension.
+    pub fn from_affine_n(map: &AffineN) -> Result<Affine3> {
+        if map.dim() != 3 || map.m.nrows() != 3 || map.m.ncols() != 3 {
+            return Err(Error::Shape(format!(
+                "expected a 3-D map, got dimension {}",
+                map.dim()
+            )));
+        }
+        Ok(Affine3 {
+            m: Matrix3::from_fn(|r, c| map.m[(r, c)]),
+            b: Vector3::new(map.b[0], map.b[1], map.b[2]),
+        })
+    }
+
+    /// The maps of a 3-D code file (`ifslab-code/1` with `"dim": 3`: a 3 × 3 `matrix` and
+    /// an `offset` of 3 per map); refuses a code of another dimension.
+    pub fn from_code(code: &IfsCode) -> Result<Vec<Affine3>> {
+        if code.dim() != 3 {
+            return Err(Error::Shape(format!(
+                "the code is {}-dimensional; a code of space has \"dim\": 3",
+                code.dim()
+            )));
+        }
+        code.maps.iter().map(Affine3::from_affine_n).collect()
+    }
+
+    /// A 3-D code of `maps` (what a recovered code is saved as, [`IfsCode::save`]),
+    /// validated: finite and contractive.
+    pub fn to_code(name: Option<&str>, maps: &[Affine3]) -> Result<IfsCode> {
+        let code = IfsCode {
+            name: name.map(str::to_owned),
+            maps: maps.iter().map(Affine3::to_affine_n).collect(),
+            probabilities: None,
+            framing: None,
+            allow_non_contractive: false,
+            meta: Default::default(),
+        };
+        code.validate()?;
+        Ok(code)
     }
 }
 
@@ -127,4 +171,51 @@ pub fn sierpinski_tetrahedron() -> Vec<Affine3> {
     .iter()
     .map(|v| Affine3::homothety(0.5, v.map(|c| 0.8 * c)))
     .collect()
+}
+
+/// A 3-D fern: the classic four-map fern of space (a stem `diag(0, 0.18, 0)`; the frond's
+/// main map `0.85·I` turned by 0.1 about the stem's cross axis and lifted by 1.6 along the
+/// stem; two leaflet maps `[[±0.2, ∓0.2, 0], [0.2, 0.2, 0], [0, 0, 0.3]]` lifted by 0.8),
+/// with probabilities `(0.01, 0.85, 0.07, 0.07)` — conjugated by
+/// `x ↦ 0.17·P·x + (0, 0.45, −0.86)`, `P` swapping the `y` and `z` axes, so that the stem
+/// stands along `+z` (the turntables' up), the frond curling towards `−y`, and the attractor
+/// lies in `[−0.9, 0.9]³` (about `±0.35 × [−0.46, 0.47] × [−0.87, 0.87]`) with every offset
+/// inside `(−1, 1)³`.
+/// Conjugation keeps each map's singular values (the stem's is singular: rank 1).
+pub fn fern_3d() -> (Vec<Affine3>, Vec<f64>) {
+    let classic = [
+        (
+            [[0.0, 0.0, 0.0], [0.0, 0.18, 0.0], [0.0, 0.0, 0.0]],
+            [0.0, 0.0, 0.0],
+        ),
+        (
+            [[0.85, 0.0, 0.0], [0.0, 0.85, 0.1], [0.0, -0.1, 0.85]],
+            [0.0, 1.6, 0.0],
+        ),
+        (
+            [[0.2, -0.2, 0.0], [0.2, 0.2, 0.0], [0.0, 0.0, 0.3]],
+            [0.0, 0.8, 0.0],
+        ),
+        (
+            [[-0.2, 0.2, 0.0], [0.2, 0.2, 0.0], [0.0, 0.0, 0.3]],
+            [0.0, 0.8, 0.0],
+        ),
+    ];
+    let p = Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0);
+    let a = p * 0.17;
+    let a_inv = p / 0.17;
+    let c = Vector3::new(0.0, 0.45, -0.86);
+    let maps = classic
+        .iter()
+        .map(|(m, b)| {
+            let f = Affine3::new(*m, *b);
+            // T∘f∘T⁻¹ with T(x) = A·x + c: y ↦ A·M·A⁻¹·y + A·b + c − A·M·A⁻¹·c.
+            let m2 = a * f.m * a_inv;
+            Affine3 {
+                m: m2,
+                b: a * f.b + c - m2 * c,
+            }
+        })
+        .collect();
+    (maps, vec![0.01, 0.85, 0.07, 0.07])
 }

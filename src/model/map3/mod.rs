@@ -26,7 +26,7 @@ mod rotation;
 mod similitude3;
 mod svd3;
 
-pub use affine3::{Affine3, sierpinski_tetrahedron};
+pub use affine3::{Affine3, fern_3d, sierpinski_tetrahedron};
 pub use rotation::{quaternion_from_rotation, rotation_from_quaternion, rotation_jacobian};
 pub use similitude3::Similitude3;
 pub use svd3::{SVD3_PARAMS, SvdMap3};
