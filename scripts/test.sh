@@ -40,14 +40,16 @@ elif [ "$status" != 0 ]; then
 fi
 # The Python package (python/, python/README.md): a venv with the pinned build and test
 # tools, the extension built by maturin in the `ci` profile into the workspace's target
-# folder (the tests above compiled most of its dependencies), then pytest, whose
+# folder — with `reuse-test-build` its dependencies resolve to the features the tests above
+# compiled, so only pyo3 and the extension itself are compiled (~40 s; without it ifslab,
+# its strategies, experiments and candle again, ~10 min) —, then pytest (~50 s), whose
 # comparisons with the command line run target/ci/ifslab (IFSLAB_CLI: a missing binary
 # fails them instead of skipping).
 python_start=$(date +%s)
 venv=target/python-venv
 [ -x "$venv/bin/python" ] || python3 -m venv "$venv"
 "$venv/bin/pip" install -q -r python/requirements-test.txt
-PATH="$PWD/$venv/bin:$PATH" CARGO_TARGET_DIR="$PWD/target" MATURIN_PEP517_ARGS="--profile ci" \
+PATH="$PWD/$venv/bin:$PATH" CARGO_TARGET_DIR="$PWD/target" MATURIN_PEP517_ARGS="--profile ci --features reuse-test-build" \
   "$venv/bin/pip" install -q --no-build-isolation --force-reinstall --no-deps ./python
 IFSLAB_CLI="$PWD/target/ci/ifslab" "$venv/bin/python" -m pytest -q python/tests
 echo "the Python package's build and tests took $(( $(date +%s) - python_start )) s"
