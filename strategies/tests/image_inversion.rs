@@ -59,6 +59,7 @@ fn base_config(size: usize, iterations: u64, strategy: StrategyConfig) -> Invers
             truth: None,
             size,
             polarity: Default::default(),
+            cells: None,
         },
         model: ModelConfig::default(),
         generator: GeneratorConfig {

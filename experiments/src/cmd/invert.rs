@@ -112,6 +112,14 @@ pub struct Args {
     /// the default). [default: 0]
     #[arg(long)]
     pub collage_refine: Option<usize>,
+    /// Read the picture's grey levels the way the splat makes its own: where the picture is
+    /// reduced at least twice into the target, each pixel's level is the share of its cells
+    /// (the renderer's supersampling) under which the picture reaches this share of its ink
+    /// level, so a thin filament gets the level a splat point gives it rather than a faint
+    /// grey; 0 reads the picture's levels as they are (measured in robustness/README.md).
+    /// [default: 0.35; --paper: 0]
+    #[arg(long, value_name = "SHARE")]
+    pub cells: Option<f64>,
     /// Which way round the target's shape is drawn: auto (decide from the border),
     /// bright-on-dark or dark-on-light.
     #[arg(long, default_value = "auto", conflicts_with = "dark_on_light")]
@@ -203,6 +211,9 @@ fn config_from_flags(a: &Args) -> anyhow::Result<InversionConfig> {
     }
     if let Some(side) = a.start_size {
         set("model.start_size", (side as i64).into());
+    }
+    if let Some(share) = a.cells {
+        set("target.cells", share.into());
     }
     if let Some(rounds) = a.collage_refine {
         set("model.collage_refine", (rounds as i64).into());

@@ -13,7 +13,7 @@ use ifslab::render::image_io::{BitDepth, save_grey_png};
 use ifslab::render::{RenderConfig, View, Zoom, render};
 use ifslab_strategies::problems::image::{
     FRAMED_TARGET_FILE, InversionConfig, InversionOutcome, TARGET_READING_FILE, ensure_new_run_dir,
-    load_framed_picture, load_framed_target, load_target, run_inversion, save_framed_target,
+    load_framed_picture_with, load_framed_target, load_target, run_inversion, save_framed_target,
 };
 use plotters::prelude::*;
 use serde::Serialize;
@@ -250,8 +250,9 @@ pub fn run_and_report(
         ensure_new_run_dir(dir)?;
         let (target, reading) = match &cfg.target.image {
             Some(path) => {
-                let f = load_framed_picture(path, size, cfg.target.polarity)
-                    .with_context(|| format!("preparing the target {}", path.display()))?;
+                let f =
+                    load_framed_picture_with(path, size, cfg.target.polarity, cfg.target_cells())
+                        .with_context(|| format!("preparing the target {}", path.display()))?;
                 (f.values, Some(f.reading))
             }
             None => (prepare_target(cfg)?, None),

@@ -35,7 +35,7 @@ pub use model::{
 pub use problem::ImageProblem;
 pub use run::{InversionOutcome, SELECTION_STREAMS, Selection, ensure_new_run_dir, run_inversion};
 pub use target::{
-    FRAMED_TARGET_FILE, FramedTarget, Polarity, TARGET_READING_FILE, TargetReading, frame_picture,
-    frame_target, load_framed_picture, load_framed_target, load_target, save_framed_target,
-    stroke_width,
+    Cells, FRAMED_TARGET_FILE, FramedTarget, Polarity, TARGET_READING_FILE, TargetReading,
+    frame_picture, frame_picture_with, frame_target, load_framed_picture, load_framed_picture_with,
+    load_framed_target, load_target, save_framed_target, stroke_width,
 };

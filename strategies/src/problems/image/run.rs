@@ -240,6 +240,7 @@ mod tests {
                 truth: None,
                 size,
                 polarity: Default::default(),
+                cells: None,
             },
             generator: GeneratorConfig {
                 trajectories: 300,
