@@ -10,8 +10,6 @@
 //! pass computes; its central difference `(L(θ + h·eᵢ) − L(θ − h·eᵢ))/2h` is taken on the
 //! same sampling state (the same trajectories, the same generator order).
 
-use std::borrow::Borrow;
-
 use ifslab::chaos::ChaosGame;
 use ifslab::model::Affine2;
 use ifslab::model::diff_map::{flat_params, set_flat_params};
@@ -23,74 +21,11 @@ use ifslab::model::segment::{Pattern, builtin};
 use ifslab::render::flame_diff::{DiffFlameConfig, FlameRenderer};
 use ifslab::render::sdf::{SdfRenderConfig, SdfRenderer, SdfView};
 use ifslab::render::splat::{Blend, Splat, SplatConfig};
-use ifslab::render::{Draws, Planes, Renderer, Sampler, value_and_grad};
+use ifslab::render::{Draws, Planes, Renderer, Sampler};
 
-/// Fixed weights in [−0.4, 0.6), one per image value.
-fn weights(n: usize) -> Vec<f64> {
-    (0..n)
-        .map(|k| ((k as f64) * 0.618_033_988_7).fract() - 0.4)
-        .collect()
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
-}
-
-/// Checks `renderer`'s reverse pass at `theta` (the scene `scene_at(θ)`) against central
-/// differences with step `h`: every entry within `tol·(1 + |fd|)`. Returns the largest
-/// |finite difference|, so the caller can check that the loss depends on θ at all.
-fn reverse_pass_matches_finite_differences<R, S>(
-    name: &str,
-    renderer: &R,
-    theta: &[f64],
-    scene_at: impl Fn(&[f64]) -> S,
-    h: f64,
-    tol: f64,
-) -> f64
-where
-    R: Renderer<Pixel = f64>,
-    S: Borrow<R::Scene>,
-{
-    let planes = renderer.planes();
-    let scene = scene_at(theta);
-    let sampling = renderer.sampling(scene.borrow(), 11, 0);
-    let w = weights(planes.len());
-    let (value, grad) = value_and_grad(renderer, scene.borrow(), &sampling, |image| {
-        assert_eq!(
-            image.len(),
-            planes.len(),
-            "{name}: the image has its planes"
-        );
-        Ok::<_, ifslab::Error>((dot(image, &w), w.clone()))
-    })
-    .unwrap();
-    assert!(value.is_finite(), "{name}: L = {value}");
-    assert_eq!(
-        grad.len(),
-        theta.len(),
-        "{name}: one derivative per parameter"
-    );
-    let loss = |t: &[f64]| {
-        dot(
-            &renderer.forward(scene_at(t).borrow(), &sampling).unwrap().0,
-            &w,
-        )
-    };
-    let mut scale = 0.0f64;
-    for k in 0..theta.len() {
-        let (mut up, mut down) = (theta.to_vec(), theta.to_vec());
-        up[k] += h;
-        down[k] -= h;
-        let fd = (loss(&up) - loss(&down)) / (2.0 * h);
-        scale = scale.max(fd.abs());
-        assert!(
-            (fd - grad[k]).abs() <= tol * (1.0 + fd.abs()),
-            "{name}, θ[{k}]: analytic {} vs finite difference {fd}",
-            grad[k]
-        );
-    }
-    scale
-}
+#[path = "common/renderer_check.rs"]
+mod renderer_check;
+use renderer_check::reverse_pass_matches_finite_differences;
 
 /// `∂L/∂θ` of the splat of three affine maps (18 parameters: `∂L/∂M` row-major, then
 /// `∂L/∂b`, per map) through the chaos game, the fitted framing and coverage blending.

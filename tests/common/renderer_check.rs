@@ -1,4 +1,4 @@
-//! The generic reverse-pass check of `tests/renderer.rs`, as a file other tests include
+//! The generic reverse-pass check `tests/renderer.rs` and `tests/three_d.rs` include
 //! (`#[path = "common/renderer_check.rs"] mod renderer_check;`): a renderer's `∂L/∂θ`
 //! against central finite differences in f64, through the `Renderer` trait.
 //!
