@@ -32,6 +32,19 @@ pub fn request() {
     REQUESTED.store(true, Ordering::SeqCst);
 }
 
+/// Withdraws a stop request once nothing that polls it runs any more, so that a process
+/// outliving one interrupted computation (a Python session after Ctrl-C) can start the
+/// next; the command line, whose process ends with the computation, never needs it.
+/// Returns false, leaving the request in place, while a [`Watch`] is held: a computation
+/// still on its way to a checkpoint must see it.
+pub fn clear() -> bool {
+    if WATCHERS.load(Ordering::SeqCst) > 0 {
+        return !REQUESTED.load(Ordering::SeqCst);
+    }
+    REQUESTED.store(false, Ordering::SeqCst);
+    true
+}
+
 /// Whether a stop was asked for.
 pub fn requested() -> bool {
     REQUESTED.load(Ordering::SeqCst)

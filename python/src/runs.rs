@@ -67,13 +67,12 @@ pub fn run(
     progress: Option<Py<PyAny>>,
 ) -> PyResult<String> {
     let cfg = config_of(source, config, &overrides).py()?;
-    if ifslab::interrupt::requested() {
-        // The library's stop flag has no reset yet: a run now would stop at its first
-        // checkpoint.
+    // A run interrupted earlier in this process left the library's stop flag set: withdraw
+    // it, unless another run (another Python thread) is still stopping on it.
+    if !ifslab::interrupt::clear() {
         return Err(crate::errors::IfslabError::new_err(
-            "an earlier run in this Python process was interrupted, and the library's stop \
-             flag stays set for the rest of the process: start a new Python process to run \
-             again (the interrupted run continues with resume=its folder)",
+            "another run in this Python process is stopping at its checkpoint after an \
+             interruption: start this one once it has returned",
         ));
     }
     let watch = PyProgress::new(progress, true);

@@ -1,7 +1,8 @@
 """Ctrl-C during a run stops it at the end of an iteration with its checkpoint, raises
 KeyboardInterrupt with the library's words, and the run resumes to the same bits as an
-uninterrupted one. Each interrupted run is its own Python process: the library's stop flag
-stays set for the rest of a process once a run was interrupted."""
+uninterrupted one; the same Python process then runs again (the library's stop flag is
+withdrawn when the next run starts). Each interrupted run is its own Python process, so the
+signal reaches no other test."""
 
 import subprocess
 import sys
@@ -26,11 +27,9 @@ INTERRUPTED = textwrap.dedent(
         ifslab.invert(sys.argv[2], output=sys.argv[1], progress=progress, **{RUN!r})
     except KeyboardInterrupt as e:
         print("KeyboardInterrupt:", e)
-        # A second run in this process is refused rather than stopped at once.
-        try:
-            ifslab.invert(sys.argv[2], output=sys.argv[1] + "-second", **{RUN!r})
-        except ifslab.IfslabError as e2:
-            print("second run refused:", e2)
+        # A second run in this process runs to its end, not stopped at once.
+        second = ifslab.invert(sys.argv[2], output=sys.argv[1] + "-second", **{RUN!r})
+        print("second run finished:", second.summary["iterations"])
         sys.exit(3)
     print("finished")
     """
@@ -49,7 +48,7 @@ def test_ctrl_c_checkpoints_and_the_run_resumes_bit_identically(tmp_path):
     assert done.returncode == 3, done.stdout + done.stderr
     assert "KeyboardInterrupt: interrupted after iteration" in done.stdout
     assert "checkpoint is saved" in done.stdout
-    assert "second run refused: an earlier run in this Python process was interrupted" in done.stdout
+    assert "second run finished: 60" in done.stdout
     assert (run_dir / "checkpoint.json").is_file()
     assert not (run_dir / "summary.json").is_file()
 
