@@ -206,9 +206,14 @@ pub struct IfsCode {
 impl IfsCode {
     /// A 2-D code from affine maps, validated (contractive, finite).
     pub fn from_affine2(name: Option<&str>, maps: &[Affine2]) -> Result<Self> {
+        IfsCode::from_affine_n(name, maps.iter().map(Affine2::to_affine_n).collect())
+    }
+
+    /// A code of any dimension from its maps, validated (contractive, finite).
+    pub fn from_affine_n(name: Option<&str>, maps: Vec<AffineN>) -> Result<Self> {
         let code = IfsCode {
             name: name.map(str::to_owned),
-            maps: maps.iter().map(Affine2::to_affine_n).collect(),
+            maps,
             probabilities: None,
             framing: None,
             allow_non_contractive: false,

@@ -94,16 +94,7 @@ impl Affine3 {
     /// A 3-D code of `maps` (what a recovered code is saved as, [`IfsCode::save`]),
     /// validated: finite and contractive.
     pub fn to_code(name: Option<&str>, maps: &[Affine3]) -> Result<IfsCode> {
-        let code = IfsCode {
-            name: name.map(str::to_owned),
-            maps: maps.iter().map(Affine3::to_affine_n).collect(),
-            probabilities: None,
-            framing: None,
-            allow_non_contractive: false,
-            meta: Default::default(),
-        };
-        code.validate()?;
-        Ok(code)
+        IfsCode::from_affine_n(name, maps.iter().map(Affine3::to_affine_n).collect())
     }
 }
 
