@@ -47,6 +47,8 @@ enum Command {
     Texture(cmd::texture::Args),
     /// Recover an IFS code from an image (differentiable splatting + a strategy).
     Invert(cmd::invert::Args),
+    /// Recover an IFS code of space from pictures taken around it (views with cameras).
+    Invert3d(cmd::invert3d::Args),
     /// Run what a config file describes: an image inversion, a points fit or a texture
     /// upsampling (its `problem` key).
     Run(cmd::run::Args),
@@ -94,6 +96,7 @@ fn main() -> anyhow::Result<()> {
         Command::FitPoints(a) => cmd::fit_points::run(a),
         Command::Texture(a) => cmd::texture::run(a),
         Command::Invert(a) => cmd::invert::run(a),
+        Command::Invert3d(a) => cmd::invert3d::run(a),
         Command::Run(a) => cmd::run::run(a),
         Command::Suite(a) => cmd::suite::run(a),
         Command::Sweep(a) => cmd::sweep::run(a),

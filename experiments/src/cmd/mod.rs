@@ -6,6 +6,7 @@ pub mod demo;
 pub mod fit_points;
 pub mod flame;
 pub mod invert;
+pub mod invert3d;
 pub mod landscape;
 pub mod pack;
 pub mod redraw;

@@ -9,4 +9,5 @@ pub mod em;
 pub mod flame;
 pub mod fractal_coding;
 pub mod image;
+pub mod image3d;
 pub mod sdf;

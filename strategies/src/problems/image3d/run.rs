@@ -1,0 +1,362 @@
+//! A multi-view inversion into a run folder: the hull and its EM code (the baseline), the
+//! registered strategy under the shared driver from that code (or a random one), and what
+//! people open — the code (`code.json`, and the baseline's `baseline.json`), the attractor
+//! as a point cloud (`points.ply`), a turntable of renders (`turntable.png`), the views
+//! beside the fit's renders through the same cameras (`views.png`) and `summary.json`
+//! (losses; voxel IoU and Chamfer distance of baseline and fit when a truth is given).
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use argmin::core::State;
+use argmin::core::observers::Observe;
+use ifslab::chaos::{ChaosGame, points3};
+use ifslab::image::Image;
+use ifslab::metrics3d::{chamfer_distance, voxel_iou};
+use ifslab::model::map3::{Affine3, SvdMap3, flat_params};
+use ifslab::progress::Progress;
+use ifslab::render::splat3d::{Camera, Lens, MultiViewConfig, turntable};
+use serde::Serialize;
+
+use crate::driver::GradState;
+use crate::driver::plan::RunPlan;
+use crate::error::{Error, Result};
+use crate::problems::image3d::config::{Image3dConfig, Start3d};
+use crate::problems::image3d::hull::{hull_start, random_start, visual_hull};
+use crate::problems::image3d::problem::{IMAGE3D_TERMS, Image3dProblem};
+use crate::problems::image3d::views::{Views, render_views};
+
+/// The resolved config a run folder keeps (its presence marks a folder holding a run).
+pub const CONFIG_FILE: &str = "config.toml";
+
+/// Random streams the start and the last iterate are compared on (never an iteration's).
+const SELECTION_STREAMS: [u64; 2] = [u64::MAX - 1, u64::MAX - 2];
+
+/// Points of an attractor for the point cloud and the scores (500 trajectories of 200).
+fn evaluation_game(seed: u64) -> ChaosGame {
+    ChaosGame {
+        trajectories: 500,
+        length: 220,
+        warmup: 20,
+        start_half_width: 1.0,
+        seed,
+    }
+}
+
+/// What a multi-view inversion found.
+#[derive(Clone, Debug)]
+pub struct Image3dOutcome {
+    /// The fitted maps.
+    pub maps: Vec<Affine3>,
+    /// The same maps as the fit's parameterisation holds them.
+    pub svd_maps: Vec<SvdMap3>,
+    /// The baseline: the visual hull's EM code.
+    pub baseline: Vec<Affine3>,
+    /// `start` or `last`: which the run returns (the lower loss on fixed streams).
+    pub returned: &'static str,
+    /// The loss of the start (mean over views, final σ, fixed streams).
+    pub start_loss: f64,
+    /// The loss of the baseline (the same way).
+    pub baseline_loss: f64,
+    /// The loss of the returned code (the same way).
+    pub loss: f64,
+    /// Strategy iterations run.
+    pub iterations: u64,
+    /// Voxels of the visual hull.
+    pub hull_voxels: usize,
+    /// Seconds of the hull and its EM fit.
+    pub hull_seconds: f64,
+    /// Seconds of the strategy.
+    pub fit_seconds: f64,
+    /// The CSV log.
+    pub log: PathBuf,
+}
+
+/// The mean loss of θ over the selection streams at the end of the σ schedule.
+fn selection_loss(problem: &Image3dProblem, theta: &[f64]) -> Result<f64> {
+    let mut total = 0.0;
+    for &s in &SELECTION_STREAMS {
+        total += problem.cost(theta, s, 1.0)?;
+    }
+    Ok(total / SELECTION_STREAMS.len() as f64)
+}
+
+/// Runs the inversion `cfg` describes on `views` into `dir` (a new folder or an empty
+/// one): the hull and its EM start, then the strategy. `progress` hears the phases;
+/// `observers` see every iteration.
+pub fn run_image3d(
+    cfg: &Image3dConfig,
+    views: &Views,
+    dir: &Path,
+    progress: &dyn Progress,
+    observers: Vec<Box<dyn Observe<GradState> + Send>>,
+) -> Result<Image3dOutcome> {
+    cfg.validate()?;
+    let plan = RunPlan {
+        dir,
+        resume: false,
+        strategy: (cfg.strategy.name(), cfg.strategy.params()),
+        iterations: cfg.iterations,
+        seed: cfg.seed,
+        checkpoint_every: cfg.checkpoint_every,
+        terms: &IMAGE3D_TERMS,
+    };
+    if dir.join(CONFIG_FILE).exists() {
+        return Err(Error::InvalidInput(format!(
+            "{} already holds a run ({CONFIG_FILE}); choose another output folder",
+            dir.display()
+        )));
+    }
+    let resume_from = plan.prepare()?;
+    let text = toml::to_string(cfg).map_err(|e| Error::Numerical(format!("config: {e}")))?;
+    ifslab::io::write_atomic(&dir.join(CONFIG_FILE), text.as_bytes())?;
+
+    progress.message("carving the visual hull and fitting EM to it");
+    let clock = Instant::now();
+    let hull = visual_hull(views, &cfg.hull)?;
+    let baseline = hull_start(&hull, cfg.maps, &cfg.hull, cfg.seed)?;
+    let hull_seconds = clock.elapsed().as_secs_f64();
+    progress.message(&format!(
+        "hull: {} voxels; EM code of {} maps in {hull_seconds:.1} s",
+        hull.kept.len(),
+        cfg.maps
+    ));
+    let start_maps = match cfg.start {
+        Start3d::Hull => baseline.clone(),
+        Start3d::Random => random_start(cfg.maps, cfg.seed)?,
+    };
+
+    let mut problem = Image3dProblem::<f32>::new(
+        &start_maps,
+        views,
+        cfg.render.multi_view(),
+        cfg.loss(),
+        cfg.seed,
+    )?
+    .with_volume(cfg.volume)?;
+    if let Some(end) = cfg.render.sigma_final {
+        problem = problem.with_sigma_schedule(end, cfg.iterations)?;
+    }
+    let start = plan
+        .start(resume_from, || Ok(flat_params(&start_maps)))?
+        .ok_or_else(|| Error::Numerical("the run has no start".into()))?;
+    progress.start("invert3d", cfg.iterations);
+    let clock = Instant::now();
+    let (problem, state) = plan.execute(problem, &start, resume_from, observers)?;
+    let fit_seconds = clock.elapsed().as_secs_f64();
+    progress.finish();
+    let last = state
+        .get_param()
+        .cloned()
+        .ok_or_else(|| Error::Numerical("the run ended without parameters".into()))?;
+    let start_loss = selection_loss(&problem, &start)?;
+    let baseline_loss = selection_loss(&problem, &flat_params(&baseline))?;
+    let (theta, returned, loss) = match selection_loss(&problem, &last) {
+        Ok(l) if l <= start_loss => (last, "last", l),
+        _ => (start, "start", start_loss),
+    };
+    let svd_maps = problem.maps_at(&theta)?;
+    Ok(Image3dOutcome {
+        maps: to_affine(&svd_maps),
+        svd_maps,
+        baseline: to_affine(&baseline),
+        returned,
+        start_loss,
+        baseline_loss,
+        loss,
+        iterations: state.get_iter(),
+        hull_voxels: hull.kept.len(),
+        hull_seconds,
+        fit_seconds,
+        log: plan.log_path(),
+    })
+}
+
+fn to_affine(maps: &[SvdMap3]) -> Vec<Affine3> {
+    maps.iter().map(SvdMap3::to_affine).collect()
+}
+
+/// Scores of a code against the truth's attractor.
+#[derive(Clone, Debug, Serialize)]
+pub struct Scores3d {
+    /// Voxel IoU at 64³ within one voxel.
+    pub voxel_iou: f64,
+    /// Chamfer distance (world units).
+    pub chamfer: f64,
+}
+
+/// `summary.json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct Summary3d {
+    /// Views fitted.
+    pub views: usize,
+    /// Their width and height.
+    pub size: [usize; 2],
+    /// Maps fitted.
+    pub maps: usize,
+    /// Strategy iterations run.
+    pub iterations: u64,
+    /// `start` or `last`.
+    pub returned: &'static str,
+    /// Losses (mean over views, final σ, fixed streams).
+    pub loss: Losses3d,
+    /// Voxels of the visual hull.
+    pub hull_voxels: usize,
+    /// Seconds: hull and EM, then the strategy.
+    pub seconds: [f64; 2],
+    /// The baseline's scores against the truth, when one was given.
+    pub baseline: Option<Scores3d>,
+    /// The fit's scores against the truth, when one was given.
+    pub fit: Option<Scores3d>,
+}
+
+/// Losses of the start, the baseline and the fit.
+#[derive(Clone, Debug, Serialize)]
+pub struct Losses3d {
+    /// The start's.
+    pub start: f64,
+    /// The baseline's (hull + EM).
+    pub baseline: f64,
+    /// The returned code's.
+    pub fit: f64,
+}
+
+/// The attractor of `maps` (uniform map choice unless `probs`) as 110 000 points.
+pub fn attractor(maps: &[Affine3], probs: Option<&[f64]>, seed: u64) -> Result<Vec<[f64; 3]>> {
+    Ok(points3(&evaluation_game(seed), maps, probs)?)
+}
+
+/// Writes the outputs of `outcome` into `dir` (see the module docs) and returns the
+/// summary; `truth` (maps and their probabilities) adds the scores.
+pub fn write_outputs(
+    dir: &Path,
+    cfg: &Image3dConfig,
+    views: &Views,
+    outcome: &Image3dOutcome,
+    truth: Option<(&[Affine3], Option<&[f64]>)>,
+) -> Result<Summary3d> {
+    Affine3::to_code(Some("invert3d"), &outcome.maps)?.save(dir.join("code.json"))?;
+    Affine3::to_code(Some("visual hull + EM"), &outcome.baseline)?
+        .save(dir.join("baseline.json"))?;
+    let points = attractor(&outcome.maps, None, cfg.seed)?;
+    write_ply(&dir.join("points.ply"), &points)?;
+
+    // The fit and the views through the views' cameras, and a turntable around the fit.
+    let mut render = cfg.render.multi_view();
+    render.sigma = cfg.render.sigma_final.unwrap_or(cfg.render.sigma);
+    render.game.trajectories *= 4;
+    let svd = &outcome.svd_maps;
+    let (w, h) = views.size();
+    let fitted = render_views(svd, &views.cameras, &render, None, cfg.seed)?;
+    let rows = [views.planes.as_slice(), fitted.as_slice()];
+    save_strip(&dir.join("views.png"), &rows, views.len(), w, h)?;
+    let table = turntable_around(&views.cameras, 128)?;
+    let turn = render_views(svd, &table, &render, None, cfg.seed)?;
+    save_strip(&dir.join("turntable.png"), &[&turn], table.len(), 128, 128)?;
+
+    let (baseline, fit) = match truth {
+        Some((maps, probs)) => {
+            let t = attractor(maps, probs, cfg.seed.wrapping_add(1))?;
+            let b = attractor(&outcome.baseline, None, cfg.seed)?;
+            let score = |p: &[[f64; 3]]| -> Result<Scores3d> {
+                Ok(Scores3d {
+                    voxel_iou: voxel_iou(&t, p, 64, 1)?,
+                    chamfer: chamfer_distance(&t, p)?,
+                })
+            };
+            (Some(score(&b)?), Some(score(&points)?))
+        }
+        None => (None, None),
+    };
+    let summary = Summary3d {
+        views: views.len(),
+        size: [w, h],
+        maps: outcome.maps.len(),
+        iterations: outcome.iterations,
+        returned: outcome.returned,
+        loss: Losses3d {
+            start: outcome.start_loss,
+            baseline: outcome.baseline_loss,
+            fit: outcome.loss,
+        },
+        hull_voxels: outcome.hull_voxels,
+        seconds: [outcome.hull_seconds, outcome.fit_seconds],
+        baseline,
+        fit,
+    };
+    let text = serde_json::to_string_pretty(&summary)
+        .map_err(|e| Error::Numerical(format!("summary: {e}")))?;
+    ifslab::io::write_atomic(&dir.join("summary.json"), text.as_bytes())?;
+    Ok(summary)
+}
+
+/// Eight views of `side²` at 25° elevation around the origin, a pinhole of 50°, at the
+/// mean distance of `cameras` from the origin.
+fn turntable_around(cameras: &[Camera], side: usize) -> Result<Vec<Camera>> {
+    let d = cameras
+        .iter()
+        .map(|c| c.position().iter().map(|v| v * v).sum::<f64>().sqrt())
+        .sum::<f64>()
+        / cameras.len() as f64;
+    let d = if d.is_finite() && d > 0.5 { d } else { 4.0 };
+    Ok(turntable(
+        8,
+        25.0,
+        d,
+        Lens::pinhole_fov(50f64.to_radians(), side, side),
+        side,
+        side,
+    )?)
+}
+
+/// Rows of `n` planes of `w × h` (ink 1) side by side, as one PNG: dark ink on white.
+fn save_strip(path: &Path, rows: &[&[f32]], n: usize, w: usize, h: usize) -> Result<()> {
+    let width = n * w;
+    let mut out = vec![1.0f32; width * h * rows.len()];
+    for (r, planes) in rows.iter().enumerate() {
+        for (k, plane) in planes.chunks_exact(w * h).enumerate() {
+            for y in 0..h {
+                for x in 0..w {
+                    out[(r * h + y) * width + k * w + x] = 1.0 - plane[y * w + x].clamp(0.0, 1.0);
+                }
+            }
+        }
+    }
+    Image::grey(width as u32, (h * rows.len()) as u32, out)?.save_png(path)?;
+    Ok(())
+}
+
+/// An ASCII PLY of `points` (vertices only), written atomically.
+pub fn write_ply(path: &Path, points: &[[f64; 3]]) -> Result<()> {
+    let mut buf = Vec::with_capacity(points.len() * 30 + 200);
+    let io = |e: std::io::Error| Error::file(path, e);
+    write!(
+        buf,
+        "ply\nformat ascii 1.0\ncomment ifslab invert3d: the attractor of the fitted code\n\
+         element vertex {}\nproperty float x\nproperty float y\nproperty float z\nend_header\n",
+        points.len()
+    )
+    .map_err(io)?;
+    for p in points {
+        writeln!(buf, "{:.6} {:.6} {:.6}", p[0], p[1], p[2]).map_err(io)?;
+    }
+    ifslab::io::write_atomic(path, &buf)?;
+    Ok(())
+}
+
+/// The multi-view splat's image of the affine `maps` through `cameras`, map `i` drawn with
+/// probability `probs[i]` (what the tests and `--render-views` draw targets with).
+pub fn render_code(
+    maps: &[Affine3],
+    cameras: &[Camera],
+    render: &MultiViewConfig,
+    probs: Option<&[f64]>,
+    seed: u64,
+) -> Result<Vec<f32>> {
+    let svd: Vec<SvdMap3> = maps
+        .iter()
+        .map(|m| SvdMap3::from_affine(m, 1e-9))
+        .collect::<ifslab::Result<_>>()?;
+    render_views(&svd, cameras, render, probs, seed)
+}
