@@ -20,6 +20,7 @@
 //! - [`progress`]: the progress callback;
 //! - [`codes::resolve_code`]: a code from a file or a built-in name;
 //! - [`inputs::parse`]: every input format parsed from bytes (fuzz targets, regression corpus);
+//! - [`serve`]: the zoom viewer's web server (`ifslab serve`);
 //! - [`sweep`]: many runs from one sweep file: locally, in shards, as a Slurm job array, and
 //!   their collected report.
 #![warn(missing_docs)]
@@ -29,5 +30,6 @@ pub mod inputs;
 pub mod plot;
 pub mod progress;
 pub mod runs;
+pub mod serve;
 pub mod suite;
 pub mod sweep;

@@ -71,6 +71,9 @@ enum Command {
     /// Segment-pattern IFSs with the differentiable SDF raster: fit control points to an
     /// image, render a pattern.
     Sdf(cmd::sdf::Args),
+    /// A local web page that pans and zooms deep into a code's attractor, or a run's
+    /// target and recovered code side by side.
+    Serve(cmd::serve::Args),
     /// Fractal flames: render .flame files (flam3's algorithm), random flames, info, convert.
     Flame(cmd::flame::Args),
 }
@@ -108,5 +111,6 @@ fn main() -> anyhow::Result<()> {
         Command::Weights(a) => cmd::weights::run(a),
         Command::Flame(a) => cmd::flame::run(a),
         Command::Sdf(a) => cmd::sdf::run(a),
+        Command::Serve(a) => cmd::serve::run(a),
     }
 }

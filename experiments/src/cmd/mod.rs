@@ -14,6 +14,7 @@ pub mod render;
 pub mod run;
 pub mod sample;
 pub mod sdf;
+pub mod serve;
 pub mod suite;
 pub mod sweep;
 pub mod texture;

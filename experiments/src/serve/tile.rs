@@ -1,0 +1,440 @@
+//! Tiles: the viewer's square base window cut into `2^level × 2^level` tiles, each a
+//! `size × size` PNG drawn on demand by the evaluation renderer with deep zoom on.
+//!
+//! A tile request is an input like any other and is checked before any work: whole numbers
+//! only, `level` in `0..=max_level`, `x` and `y` in `0..2^level`, `size` at most
+//! [`TILE_SIZE_MAX`], a known mode and colour map, no unknown or repeated parameter. A
+//! refusal is a [`TileError`] naming the parameter, served as `400 Bad Request`.
+//!
+//! **How deep.** The renderer refuses a window narrower than 2²⁰ doubles at its centre
+//! (`ifslab::render::zoom_window`: a megapixel image could not place its points apart past
+//! that). A tile at level `L` of a base window of side `s` is `s / 2^L` wide, and doubles
+//! near its centre are `scale · ε` apart, `scale` at most the base window's largest
+//! coordinate (or its side, if larger). So every tile of every level up to
+//! `⌊log₂(s / (scale · ε · 2²⁰))⌋` renders ([`Tiling::max_level`]): 32 for a base window
+//! wider than its distance from the origin (the classic codes: zoom 2³², tiles about
+//! 3·10⁻¹⁰ of the attractor wide), fewer for a window far from the origin (22 for a window
+//! 1.5 wide at 1000). A tile's pixel there is still about 2¹² doubles wide. The deep-zoom
+//! sampler's own limit (words composed in f64, about 2⁴³) lies beyond it.
+
+use std::fmt;
+
+use ifslab::model::affine::Affine2;
+use ifslab::model::code::Window;
+use ifslab::render::{RenderConfig, RenderMode, View, Zoom, render, zoom_window};
+
+use super::colormap::Colormap;
+
+/// Tile side in pixels when the request names none.
+pub const TILE_SIZE_DEFAULT: u32 = 256;
+/// The largest tile side a request may ask for.
+pub const TILE_SIZE_MAX: u32 = 512;
+/// The smallest tile side a request may ask for.
+pub const TILE_SIZE_MIN: u32 = 16;
+/// No level past this, whatever the window (the deep-zoom sampler ends near 2⁴³).
+pub const LEVEL_CAP: u32 = 40;
+/// Doubles the renderer asks a window to span ([`ifslab::render::zoom_window`]'s bound).
+const WINDOW_DOUBLES: f64 = (1u64 << 20) as f64;
+
+/// A tile request refused, with the parameter to change.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum TileError {
+    /// A parameter the endpoint needs is absent.
+    Missing(&'static str),
+    /// A parameter the endpoint does not know.
+    Unknown(String),
+    /// A parameter given twice.
+    Repeated(String),
+    /// A parameter whose value is out of range or not a number.
+    Invalid {
+        /// The parameter.
+        param: &'static str,
+        /// What it must be, and what it was.
+        reason: String,
+    },
+}
+
+impl fmt::Display for TileError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            TileError::Missing(p) => write!(f, "tile parameter `{p}` is missing"),
+            TileError::Unknown(p) => write!(
+                f,
+                "unknown tile parameter `{p}` (known: level, x, y, size, mode, cmap, gen, sid)"
+            ),
+            TileError::Repeated(p) => write!(f, "tile parameter `{p}` is given twice"),
+            TileError::Invalid { param, reason } => {
+                write!(f, "bad tile parameter `{param}`: {reason}")
+            }
+        }
+    }
+}
+
+impl std::error::Error for TileError {}
+
+/// The base window and how deep its tiles go.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Tiling {
+    base: Window,
+    max_level: u32,
+}
+
+impl Tiling {
+    /// Tiles of `window` made square (its longer side around its centre).
+    pub fn new(window: &Window) -> anyhow::Result<Self> {
+        window.validate()?;
+        let [w, h] = window.size();
+        let side = w.max(h);
+        let c = window.center();
+        // A square window (to rounding) is kept to the bit: a code's framing is `ifslab
+        // render`'s window.
+        let base = match (w - h).abs() <= 1e-9 * side {
+            true => *window,
+            false => Window {
+                min: [c[0] - 0.5 * side, c[1] - 0.5 * side],
+                max: [c[0] + 0.5 * side, c[1] + 0.5 * side],
+            },
+        };
+        let scale = base
+            .min
+            .iter()
+            .chain(&base.max)
+            .fold(side, |m, v| m.max(v.abs()));
+        let ratio = side / (scale * f64::EPSILON * WINDOW_DOUBLES);
+        let mut tiling = Tiling {
+            base,
+            max_level: ratio.log2().floor().clamp(0.0, LEVEL_CAP as f64) as u32,
+        };
+        // The renderer's own test decides at the edge: the corner tiles lie farthest from
+        // the origin.
+        while tiling.max_level > 0 {
+            let last = (1u64 << tiling.max_level) - 1;
+            let corners = [(0, 0), (0, last), (last, 0), (last, last)];
+            if corners
+                .iter()
+                .all(|&(x, y)| zoom_window(&base, &tiling.zoom(tiling.max_level, x, y)).is_ok())
+            {
+                break;
+            }
+            tiling.max_level -= 1;
+        }
+        Ok(tiling)
+    }
+
+    /// The square window level 0's single tile shows.
+    pub fn base(&self) -> Window {
+        self.base
+    }
+
+    /// The deepest level whose every tile the renderer draws (see the module docs).
+    pub fn max_level(&self) -> u32 {
+        self.max_level
+    }
+
+    /// The zoom of the base window that shows tile `(x, y)` of `level` (row 0 at the top).
+    pub fn zoom(&self, level: u32, x: u64, y: u64) -> Zoom {
+        let n = (level as f64).exp2();
+        let side = self.base.size()[0];
+        Zoom {
+            factor: n,
+            center: Some([
+                self.base.min[0] + (x as f64 + 0.5) * (side / n),
+                self.base.max[1] - (y as f64 + 0.5) * (side / n),
+            ]),
+        }
+    }
+}
+
+/// One tile: where, how big, drawn how, and which view generation asked for it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TileRequest {
+    /// Level: the base window cut into `2^level` tiles a side.
+    pub level: u32,
+    /// Column, from the left.
+    pub x: u64,
+    /// Row, from the top.
+    pub y: u64,
+    /// Side in pixels.
+    pub size: u32,
+    /// Density or binary coverage.
+    pub mode: RenderMode,
+    /// Colour map of the inked pixels.
+    pub cmap: Colormap,
+    /// The page's view generation and the page's id: a tile of a generation older than the
+    /// latest its page asked for is skipped (`None`: never skipped).
+    pub generation: Option<(u64, u64)>,
+}
+
+impl TileRequest {
+    /// Parses and checks a query string (`level=3&x=1&y=5&mode=density…`) against `tiling`.
+    pub fn parse(query: &str, tiling: &Tiling) -> Result<Self, TileError> {
+        let mut seen: Vec<&str> = Vec::new();
+        let (mut level, mut x, mut y) = (None, None, None);
+        let (mut size, mut mode, mut cmap) =
+            (TILE_SIZE_DEFAULT, RenderMode::Coverage, Colormap::default());
+        let (mut gen_, mut sid) = (None, None);
+        for pair in query.split('&').filter(|p| !p.is_empty()) {
+            let (key, value) = pair.split_once('=').unwrap_or((pair, ""));
+            if seen.contains(&key) {
+                return Err(TileError::Repeated(shown(key)));
+            }
+            seen.push(key);
+            match key {
+                "level" => level = Some(whole("level", value, tiling.max_level as u64)? as u32),
+                "x" => x = Some(value),
+                "y" => y = Some(value),
+                "size" => {
+                    size = whole("size", value, TILE_SIZE_MAX as u64)? as u32;
+                    if size < TILE_SIZE_MIN {
+                        return Err(TileError::Invalid {
+                            param: "size",
+                            reason: format!(
+                                "must lie in {TILE_SIZE_MIN}..={TILE_SIZE_MAX} pixels, got {size}"
+                            ),
+                        });
+                    }
+                }
+                "mode" => {
+                    mode = match value {
+                        "coverage" => RenderMode::Coverage,
+                        "density" => RenderMode::Density,
+                        _ => {
+                            return Err(TileError::Invalid {
+                                param: "mode",
+                                reason: format!(
+                                    "must be `coverage` or `density`, got `{}`",
+                                    shown(value)
+                                ),
+                            });
+                        }
+                    }
+                }
+                "cmap" => {
+                    cmap = Colormap::from_name(value).ok_or_else(|| TileError::Invalid {
+                        param: "cmap",
+                        reason: format!(
+                            "must be one of {}, got `{}`",
+                            Colormap::NAMES.join(", "),
+                            shown(value)
+                        ),
+                    })?
+                }
+                "gen" => gen_ = Some(whole("gen", value, u64::MAX)?),
+                "sid" => sid = Some(whole("sid", value, u64::MAX)?),
+                _ => return Err(TileError::Unknown(shown(key))),
+            }
+        }
+        let level = level.ok_or(TileError::Missing("level"))?;
+        // Columns and rows are checked against their level's count.
+        let last = (1u64 << level) - 1;
+        let x = whole("x", x.ok_or(TileError::Missing("x"))?, last)?;
+        let y = whole("y", y.ok_or(TileError::Missing("y"))?, last)?;
+        let generation = match (gen_, sid) {
+            (Some(g), Some(s)) => Some((s, g)),
+            (None, None) => None,
+            _ => {
+                return Err(TileError::Invalid {
+                    param: if gen_.is_some() { "sid" } else { "gen" },
+                    reason: "`gen` and `sid` come together (a page's view generation and its id)"
+                        .into(),
+                });
+            }
+        };
+        Ok(TileRequest {
+            level,
+            x,
+            y,
+            size,
+            mode,
+            cmap,
+            generation,
+        })
+    }
+
+    /// The request without its generation: what makes two tiles the same picture.
+    pub fn key(&self) -> String {
+        format!(
+            "{}/{}/{}/{}/{:?}/{}",
+            self.level,
+            self.x,
+            self.y,
+            self.size,
+            self.mode,
+            self.cmap.name()
+        )
+    }
+}
+
+/// A parameter's value as a whole number in `0..=max`.
+fn whole(param: &'static str, value: &str, max: u64) -> Result<u64, TileError> {
+    let bad = |what: &str| TileError::Invalid {
+        param,
+        reason: format!(
+            "must be a whole number in 0..={max}{what}, got `{}`",
+            shown(value)
+        ),
+    };
+    if value.is_empty() || !value.bytes().all(|b| b.is_ascii_digit()) {
+        return Err(bad(""));
+    }
+    match value.parse::<u64>() {
+        Ok(v) if v <= max => Ok(v),
+        _ if param == "level" => Err(bad(
+            " (deeper tiles would be narrower than the renderer's double-precision bound here)",
+        )),
+        _ => Err(bad("")),
+    }
+}
+
+/// A request's text as an error message shows it: at most 40 characters, no control
+/// characters.
+fn shown(s: &str) -> String {
+    let mut out: String = s
+        .chars()
+        .take(40)
+        .map(|c| if c.is_control() { '?' } else { c })
+        .collect();
+    if s.chars().count() > 40 {
+        out.push('…');
+    }
+    out
+}
+
+/// A 2-D code and how its tiles are drawn.
+#[derive(Clone, Debug)]
+pub struct TileRenderer {
+    maps: Vec<Affine2>,
+    probs: Vec<f64>,
+    tiling: Tiling,
+    points: u64,
+    seed: u64,
+}
+
+impl TileRenderer {
+    /// Tiles of `maps` drawn with `probs`, `points` chaos-game points each, seeded by `seed`.
+    pub fn new(
+        maps: Vec<Affine2>,
+        probs: Vec<f64>,
+        tiling: Tiling,
+        points: u64,
+        seed: u64,
+    ) -> Self {
+        TileRenderer {
+            maps,
+            probs,
+            tiling,
+            points,
+            seed,
+        }
+    }
+
+    /// The tile as RGBA pixels (row-major, row 0 at the top): the colour map on inked
+    /// pixels, transparent elsewhere. A tile the attractor misses is a transparent tile.
+    pub fn render_rgba(&self, req: &TileRequest) -> anyhow::Result<Vec<u8>> {
+        let cfg = RenderConfig {
+            width: req.size,
+            height: req.size,
+            points: self.points,
+            mode: req.mode,
+            seed: self.seed,
+            view: View::Window(self.tiling.base),
+            zoom: Some(self.tiling.zoom(req.level, req.x, req.y)),
+            deep_zoom: true,
+            ..RenderConfig::default()
+        };
+        let raster = render(&self.maps, &self.probs, &cfg, None)?;
+        let mut rgba = vec![0u8; raster.values.len() * 4];
+        for (px, &v) in rgba.chunks_exact_mut(4).zip(&raster.values) {
+            if v > 0.0 {
+                let [r, g, b] = req.cmap.colour(v);
+                px.copy_from_slice(&[r, g, b, 255]);
+            }
+        }
+        Ok(rgba)
+    }
+
+    /// The tile as a PNG file's bytes.
+    pub fn render_png(&self, req: &TileRequest) -> anyhow::Result<Vec<u8>> {
+        let rgba = self.render_rgba(req)?;
+        encode_png(&rgba, req.size, req.size)
+    }
+}
+
+/// RGBA pixels as a PNG (fast compression: a tile is made to be sent at once).
+pub fn encode_png(rgba: &[u8], width: u32, height: u32) -> anyhow::Result<Vec<u8>> {
+    use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+    use image::{ExtendedColorType, ImageEncoder};
+    let mut bytes = Vec::new();
+    PngEncoder::new_with_quality(&mut bytes, CompressionType::Fast, FilterType::Sub).write_image(
+        rgba,
+        width,
+        height,
+        ExtendedColorType::Rgba8,
+    )?;
+    Ok(bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tiling() -> Tiling {
+        Tiling::new(&Window {
+            min: [-0.25, -0.3],
+            max: [1.25, 1.2],
+        })
+        .unwrap()
+    }
+
+    /// The level bound is where the renderer's own precision test would start refusing:
+    /// every tile at `max_level` renders its window, one level deeper does not for some tile.
+    #[test]
+    fn max_level_is_the_renderers_precision_bound() {
+        let t = tiling();
+        assert_eq!(t.max_level(), 32, "side 1.5, coordinates up to 1.25");
+        let base = t.base();
+        for (x, y) in [(0, 0), ((1u64 << 32) - 1, (1u64 << 32) - 1), (1 << 31, 7)] {
+            ifslab::render::zoom_window(&base, &t.zoom(t.max_level(), x, y)).unwrap();
+        }
+        let deeper = t.zoom(t.max_level() + 1, 0, 0);
+        assert!(ifslab::render::zoom_window(&base, &deeper).is_err());
+        // Far from the origin fewer levels fit.
+        let far = Tiling::new(&Window {
+            min: [1000.0, 1000.0],
+            max: [1001.5, 1001.5],
+        })
+        .unwrap();
+        assert_eq!(far.max_level(), 22);
+    }
+
+    #[test]
+    fn tile_parameters_are_checked() {
+        let t = tiling();
+        let ok =
+            TileRequest::parse("level=3&x=7&y=0&mode=density&cmap=grey&gen=4&sid=9", &t).unwrap();
+        assert_eq!(
+            (ok.level, ok.x, ok.y, ok.size),
+            (3, 7, 0, TILE_SIZE_DEFAULT)
+        );
+        assert_eq!(ok.generation, Some((9, 4)));
+        for (query, words) in [
+            ("level=NaN&x=0&y=0", "`level`"),
+            ("level=-1&x=0&y=0", "`level`"),
+            ("level=33&x=0&y=0", "double-precision"),
+            ("level=1e3&x=0&y=0", "`level`"),
+            ("level=3&x=8&y=0", "`x`: must be a whole number in 0..=7"),
+            ("level=3&x=0&y=inf", "`y`"),
+            ("level=3&x=0", "`y` is missing"),
+            ("level=1&x=0&y=0&size=4096", "`size`"),
+            ("level=1&x=0&y=0&size=0", "`size`"),
+            ("level=1&x=0&y=0&mode=fancy", "`mode`"),
+            ("level=1&x=0&y=0&cmap=jet", "`cmap`"),
+            ("level=1&x=0&y=0&zoom=2", "unknown tile parameter `zoom`"),
+            ("level=1&level=2&x=0&y=0", "given twice"),
+            ("level=1&x=0&y=0&gen=3", "`sid`"),
+        ] {
+            let e = TileRequest::parse(query, &t).unwrap_err().to_string();
+            assert!(e.contains(words), "{query}: {e}");
+        }
+    }
+}

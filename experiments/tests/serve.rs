@@ -1,0 +1,349 @@
+//! `ifslab serve`'s HTTP endpoints, through a server started in-process on a free port and
+//! a plain TCP client: tiles at the top level and 2²⁰ deep, refusals, empty tiles, stale
+//! generations, the run folder's page.
+
+use std::io::{Read, Write};
+use std::net::{SocketAddr, TcpStream};
+use std::time::Duration;
+
+use ifslab::model::IfsCode;
+use ifslab::model::affine::Affine2;
+use ifslab::model::code::Window;
+use ifslab_experiments::serve::{RunningServer, ServeOptions, Site, TileOptions, serve};
+
+/// A response: status, headers (lower-case names), body.
+struct Reply {
+    status: u16,
+    headers: Vec<(String, String)>,
+    body: Vec<u8>,
+}
+
+impl Reply {
+    fn header(&self, name: &str) -> Option<&str> {
+        self.headers
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v.as_str())
+    }
+
+    fn text(&self) -> String {
+        String::from_utf8_lossy(&self.body).into_owned()
+    }
+}
+
+/// `GET path` over a fresh connection (HTTP/1.1, `Connection: close`).
+fn get(addr: SocketAddr, path: &str) -> Reply {
+    let mut s = TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(120))).unwrap();
+    write!(
+        s,
+        "GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
+    )
+    .unwrap();
+    let mut raw = Vec::new();
+    s.read_to_end(&mut raw).unwrap();
+    let end = raw
+        .windows(4)
+        .position(|w| w == b"\r\n\r\n")
+        .expect("a header block");
+    let head = String::from_utf8(raw[..end].to_vec()).unwrap();
+    let mut lines = head.split("\r\n");
+    let status = lines
+        .next()
+        .unwrap()
+        .split(' ')
+        .nth(1)
+        .unwrap()
+        .parse()
+        .unwrap();
+    let headers: Vec<(String, String)> = lines
+        .filter_map(|l| l.split_once(':'))
+        .map(|(n, v)| (n.trim().to_ascii_lowercase(), v.trim().to_string()))
+        .collect();
+    let body = raw[end + 4..].to_vec();
+    let reply = Reply {
+        status,
+        headers,
+        body,
+    };
+    if let Some(len) = reply.header("content-length") {
+        assert_eq!(len.parse::<usize>().unwrap(), reply.body.len(), "{path}");
+    }
+    reply
+}
+
+fn start(source: &str, points: u64) -> (RunningServer, Site) {
+    let opts = TileOptions { points, seed: 0 };
+    let site = Site::load(source, opts).unwrap();
+    let again = Site::load(source, opts).unwrap();
+    let server = serve(
+        site,
+        &ServeOptions {
+            host: "127.0.0.1".into(),
+            port: 0,
+            workers: 2,
+        },
+    )
+    .unwrap();
+    (server, again)
+}
+
+/// The tile's RGBA pixels, and how many are inked (opaque).
+fn inked(reply: &Reply, what: &str) -> (image::RgbaImage, usize) {
+    assert_eq!(reply.status, 200, "{what}: {}", reply.text());
+    assert_eq!(reply.header("content-type"), Some("image/png"), "{what}");
+    let img = image::load_from_memory(&reply.body).unwrap().to_rgba8();
+    let n = img.pixels().filter(|p| p[3] == 255).count();
+    assert!(
+        img.pixels().all(|p| p[3] == 0 || p[3] == 255),
+        "{what}: ink is opaque, the rest transparent"
+    );
+    (img, n)
+}
+
+/// Tile `(x, y)` of `level` holding the point `p` (row 0 at the top).
+fn tile_of(site: &Site, level: u32, p: [f64; 2]) -> (u64, u64) {
+    let base = site.tiling.base();
+    let ts = base.size()[0] / (level as f64).exp2();
+    (
+        ((p[0] - base.min[0]) / ts).floor() as u64,
+        ((base.max[1] - p[1]) / ts).floor() as u64,
+    )
+}
+
+#[test]
+fn tiles_of_sierpinski_at_the_top_and_2_to_the_20_deep() {
+    let (server, site) = start("sierpinski", 400_000);
+    let addr = server.addr();
+    assert!(addr.ip().is_loopback());
+    assert!(site.tiling.max_level() >= 30, "{}", site.tiling.max_level());
+
+    let page = get(addr, "/");
+    assert_eq!(page.status, 200);
+    assert!(
+        page.text().contains("\"sierpinski\""),
+        "the page names its view"
+    );
+    assert!(page.text().contains("/viewer.js"));
+    let script = get(addr, "/viewer.js");
+    assert_eq!(script.status, 200);
+    assert!(script.text().contains("requestAnimationFrame"));
+    assert!(get(addr, "/LICENSE").text().contains("MIT"));
+
+    let (_, top) = inked(&get(addr, "/tile/sierpinski?level=0&x=0&y=0"), "level 0");
+    // The triangle at 75 % of 256 pixels: a quarter of its bounding box's pixels or more
+    // (its dimension is 1.585: at 192 pixels, 3^7 sub-triangles of about 1.5 pixels).
+    assert!(top > 192 * 166 / 8, "level 0: {top} pixels inked");
+
+    // 2^20 deep on the triangle's left edge, from (0, 0) to (1/2, √3/2): a segment crossing
+    // the tile, plus the sub-triangles along it.
+    let h = 3f64.sqrt() / 2.0;
+    let t = 0.3141592653589793;
+    let (x, y) = tile_of(&site, 20, [0.5 * t, h * t]);
+    let deep = get(
+        addr,
+        &format!("/tile/sierpinski?level=20&x={x}&y={y}&mode=density"),
+    );
+    let (_, n) = inked(&deep, "level 20");
+    assert!(n >= 100, "level 20 tile ({x}, {y}): {n} pixels inked");
+
+    // A tile the attractor misses is a tile: transparent, 200.
+    let (img, n) = inked(
+        &get(addr, "/tile/sierpinski?level=3&x=0&y=0"),
+        "empty corner",
+    );
+    assert_eq!(
+        (n, img.width()),
+        (0, 256),
+        "the top-left corner misses the triangle"
+    );
+    let (img, _) = inked(
+        &get(addr, "/tile/sierpinski?level=3&x=0&y=0&size=64"),
+        "64 px",
+    );
+    assert_eq!(img.dimensions(), (64, 64));
+    server.stop();
+}
+
+/// A code whose attractor is the whole unit square (four maps of ratio 1/2): a tile 2²⁰
+/// deep inside it is inked all over, so the deep-zoom sampler spreads its points over the
+/// tile as the plain game would over the whole square.
+#[test]
+fn a_tile_2_to_the_20_deep_inside_a_filled_attractor_is_full() {
+    let maps: Vec<Affine2> = [(0.0, 0.0), (0.5, 0.0), (0.0, 0.5), (0.5, 0.5)]
+        .iter()
+        .map(|&(e, f)| Affine2::new(0.5, 0.0, 0.0, 0.5, e, f))
+        .collect();
+    let mut code = IfsCode::from_affine2(Some("square"), &maps).unwrap();
+    code.framing = Some(Window {
+        min: [-0.25, -0.25],
+        max: [1.25, 1.25],
+    });
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("square.json");
+    code.save(&path).unwrap();
+    let (server, site) = start(path.to_str().unwrap(), 2_000_000);
+    assert_eq!(
+        site.tiling.base(),
+        code.framing.unwrap(),
+        "the code's framing is the base"
+    );
+    assert_eq!(site.tiling.max_level(), 32);
+    let (x, y) = tile_of(&site, 20, [0.61803398875, 0.41421356237]);
+    let (_, n) = inked(
+        &get(server.addr(), &format!("/tile/square?level=20&x={x}&y={y}")),
+        "inside",
+    );
+    assert!(n > 256 * 256 * 95 / 100, "{n} of 65536 pixels inked");
+    // The deepest level renders too.
+    let deepest = site.tiling.max_level();
+    let (x, y) = tile_of(&site, deepest, [0.61803398875, 0.41421356237]);
+    let (_, n) = inked(
+        &get(
+            server.addr(),
+            &format!("/tile/square?level={deepest}&x={x}&y={y}"),
+        ),
+        "deepest",
+    );
+    assert!(
+        n > 256 * 256 * 95 / 100,
+        "level {deepest}: {n} of 65536 pixels inked"
+    );
+    server.stop();
+}
+
+#[test]
+fn bad_tile_parameters_get_400_with_the_reason() {
+    let (server, site) = start("sierpinski", 10_000);
+    let addr = server.addr();
+    let deepest = site.tiling.max_level();
+    for (query, words) in [
+        ("level=NaN&x=0&y=0", "`level`: must be a whole number"),
+        ("level=inf&x=0&y=0", "`level`"),
+        ("level=-3&x=0&y=0", "`level`"),
+        ("level=0.5&x=0&y=0", "`level`"),
+        (
+            &format!("level={}&x=0&y=0", deepest + 1),
+            "double-precision",
+        ),
+        ("level=2&x=4&y=0", "`x`: must be a whole number in 0..=3"),
+        ("level=2&x=0&y=-1", "`y`"),
+        ("level=2&x=0", "`y` is missing"),
+        (
+            "level=0&x=0&y=0&size=100000",
+            "`size`: must be a whole number in 0..=512",
+        ),
+        ("level=0&x=0&y=0&size=8", "`size`"),
+        ("level=0&x=0&y=0&mode=3d", "`mode`"),
+        ("level=0&x=0&y=0&cmap=jet", "`cmap`"),
+        (
+            "level=0&x=0&y=0&zoom=1e300",
+            "unknown tile parameter `zoom`",
+        ),
+        ("level=0&x=0&x=0&y=0", "given twice"),
+    ] {
+        let r = get(addr, &format!("/tile/sierpinski?{query}"));
+        assert_eq!(r.status, 400, "{query}: {}", r.text());
+        assert!(r.text().contains(words), "{query}: {}", r.text());
+    }
+    assert_eq!(get(addr, "/tile/fern?level=0&x=0&y=0").status, 404);
+    assert_eq!(get(addr, "/../Cargo.toml").status, 404);
+    server.stop();
+}
+
+/// The accept thread records each page's latest generation as requests arrive; a worker
+/// skips a queued tile of an older one.
+#[test]
+fn a_tile_of_a_stale_generation_is_skipped() {
+    let (server, _) = start("sierpinski", 10_000);
+    let addr = server.addr();
+    let fresh = get(addr, "/tile/sierpinski?level=1&x=0&y=0&gen=5&sid=77");
+    assert_eq!(fresh.status, 200, "{}", fresh.text());
+    let stale = get(addr, "/tile/sierpinski?level=1&x=1&y=0&gen=3&sid=77");
+    assert_eq!(stale.status, 409, "{}", stale.text());
+    assert!(stale.text().contains("stale"), "{}", stale.text());
+    // Another page's generations are its own; a request without one is always drawn.
+    assert_eq!(
+        get(addr, "/tile/sierpinski?level=1&x=1&y=0&gen=0&sid=78").status,
+        200
+    );
+    assert_eq!(get(addr, "/tile/sierpinski?level=1&x=1&y=1").status, 200);
+    server.stop();
+}
+
+/// Requests from several clients at once are all answered.
+#[test]
+fn concurrent_tiles_are_all_served() {
+    let (server, _) = start("fern", 200_000);
+    let addr = server.addr();
+    let threads: Vec<_> = (0..8u64)
+        .map(|i| {
+            std::thread::spawn(move || {
+                get(addr, &format!("/tile/fern?level=3&x={}&y={}", i % 8, i / 2)).status
+            })
+        })
+        .collect();
+    for t in threads {
+        assert_eq!(t.join().unwrap(), 200);
+    }
+    server.stop();
+}
+
+#[test]
+fn a_run_folder_shows_target_and_recovered_code_side_by_side() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut code = ifslab::model::library::builtin("sierpinski").unwrap();
+    code.name = Some("recovered".into());
+    code.framing = Some(Window {
+        min: [-0.2, -0.3],
+        max: [1.2, 1.1],
+    });
+    code.save(dir.path().join("code.json")).unwrap();
+    let target = image::GrayImage::from_fn(32, 32, |x, y| image::Luma([((x * y) % 256) as u8]));
+    target.save(dir.path().join("target.png")).unwrap();
+    let loss = image::RgbImage::from_pixel(40, 20, image::Rgb([255, 0, 0]));
+    loss.save(dir.path().join("loss.png")).unwrap();
+
+    let (server, site) = start(dir.path().to_str().unwrap(), 10_000);
+    let addr = server.addr();
+    let names: Vec<&str> = site.views.iter().map(|v| v.name()).collect();
+    assert_eq!(names, ["target", "recovered"]);
+    let page = get(addr, "/").text();
+    let info = get(addr, "/info.json");
+    let info: serde_json::Value = serde_json::from_slice(&info.body).unwrap();
+    for name in ["target", "recovered"] {
+        assert!(
+            page.contains(&format!("\"name\":\"{name}\"")),
+            "{name} on the page"
+        );
+    }
+    assert_eq!(info["views"][0]["kind"], "picture");
+    assert_eq!(info["views"][1]["kind"], "tiles");
+    assert_eq!(
+        info["base"]["min"][0], -0.2,
+        "the code's framing, made square"
+    );
+    assert_eq!(info["base"]["max"][1], 1.1);
+    let picture = get(addr, info["views"][0]["url"].as_str().unwrap());
+    assert_eq!(picture.status, 200);
+    assert_eq!(
+        picture.body,
+        std::fs::read(dir.path().join("target.png")).unwrap()
+    );
+    let loss_url = info["loss"].as_str().unwrap();
+    assert_eq!(get(addr, loss_url).status, 200);
+    let tile = get(
+        addr,
+        &format!(
+            "{}?level=0&x=0&y=0",
+            info["views"][1]["url"].as_str().unwrap()
+        ),
+    );
+    assert!(inked(&tile, "recovered").1 > 1000);
+    server.stop();
+
+    // A folder that is no run is refused with what to give instead.
+    let empty = tempfile::tempdir().unwrap();
+    let e = Site::load(empty.path().to_str().unwrap(), TileOptions::default()).unwrap_err();
+    assert!(e.to_string().contains("without code.json"), "{e}");
+}
