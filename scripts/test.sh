@@ -38,6 +38,18 @@ elif [ "$status" != 0 ]; then
   echo "FAILED: the Slurm sweep test (scripts/slurm_test.sh)"
   exit "$status"
 fi
+# The zoom viewer (`ifslab serve`) in a real browser, Debian's Chromium headless, 2^20 deep:
+# skipped, loudly, where Chromium cannot be installed; never a silent pass.
+status=0
+scripts/viewer_browser_test.sh target/ci/ifslab || status=$?
+if [ "$status" = 77 ]; then
+  echo "=================================================================="
+  echo "SKIPPED: the viewer's browser test (scripts/viewer_browser_test.sh; reason above)"
+  echo "=================================================================="
+elif [ "$status" != 0 ]; then
+  echo "FAILED: the viewer's browser test (scripts/viewer_browser_test.sh)"
+  exit "$status"
+fi
 # The Python package (python/, python/README.md): a venv with the pinned build and test
 # tools, the extension built by maturin in the `ci` profile into the workspace's target
 # folder — with `reuse-test-build` its dependencies resolve to the features the tests above

@@ -236,10 +236,28 @@ fn signalled_runs_resume(
             .stderr(std::process::Stdio::piped())
             .spawn()
             .unwrap();
-        // Signalled once the optimisation is under way.
+        // Signalled once the optimisation is under way (a fit at several widths σ runs
+        // them one after another, each in a folder of the run: the first is under way).
+        let leg = |name: &str| {
+            let top = tmp.path().join(dir).join(name);
+            let first = tmp.path().join(dir).join("sigma-0").join(name);
+            if tmp.path().join(dir).join("sigma-0").is_dir() {
+                first
+            } else {
+                top
+            }
+        };
         let log = tmp.path().join(dir).join("log.csv");
         let t0 = Instant::now();
-        while std::fs::read_to_string(&log).map_or(0, |t| t.lines().count()) < lines {
+        let lines_now = || {
+            let path = if log.exists() {
+                log.clone()
+            } else {
+                leg("log.csv")
+            };
+            std::fs::read_to_string(path).map_or(0, |t| t.lines().count())
+        };
+        while lines_now() < lines {
             assert!(
                 t0.elapsed() < Duration::from_secs(120),
                 "{cmd:?}: the run never started"
@@ -258,10 +276,7 @@ fn signalled_runs_resume(
             err.contains("interrupted after iteration") && err.contains("--resume"),
             "{err}"
         );
-        assert!(
-            tmp.path().join(dir).join("checkpoint.json").is_file(),
-            "{signal}: {err}"
-        );
+        assert!(leg("checkpoint.json").is_file(), "{signal}: {err}");
         assert!(!tmp.path().join(dir).join("summary.json").exists());
         let (ok, msg) = run(resume
             .iter()
@@ -921,15 +936,56 @@ fn sdf_fit_and_render_end_to_end() {
         "log.csv",
         "loss.png",
         "summary.json",
-        "checkpoint.json",
     ] {
         assert!(tmp.path().join("fit").join(f).is_file(), "{f} missing");
+    }
+    // The picture's strokes are wider than the narrowest σ: three fits, each checkpointed
+    // in its own folder, the kept one named in the summary.
+    for leg in ["sigma-0", "sigma-1", "sigma-2"] {
+        let c = tmp.path().join("fit").join(leg).join("checkpoint.json");
+        assert!(c.is_file(), "{leg}: checkpoint.json missing");
     }
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(p("fit/summary.json")).unwrap()).unwrap();
     assert!(summary["iou"].as_f64().unwrap() > 0.0 && summary["iterations"] == 30);
+    let legs = summary["legs"].as_array().unwrap();
+    assert_eq!(legs.len(), 3);
+    let best = legs
+        .iter()
+        .map(|l| l["iou"].as_f64().unwrap())
+        .fold(f64::NEG_INFINITY, f64::max);
+    let kept: Vec<_> = legs.iter().filter(|l| l["chosen"] == true).collect();
+    assert_eq!(kept.len(), 1);
+    assert_eq!(kept[0]["iou"].as_f64().unwrap(), best);
+    assert_eq!(summary["iou"].as_f64().unwrap(), best);
+    assert_eq!(summary["sigma"], kept[0]["sigma"]);
     let (ok, msg) = fit("30", &[]);
-    assert!(!ok && msg.contains("already holds a run"), "{msg}");
+    assert!(
+        !ok && msg.contains("already holds a run")
+            && msg.contains(&format!("--resume {} ", p("fit"))),
+        "{msg}"
+    );
+    // One width on request: a single fit, checkpointed in the run's folder.
+    let (ok, msg) = ifslab(&[
+        "sdf",
+        "fit",
+        &p("k.png"),
+        "--pattern",
+        "koch",
+        "--depth",
+        "4",
+        "--size",
+        "64",
+        "--iterations",
+        "30",
+        "--sigma-factors",
+        "1",
+        "-o",
+        &p("one"),
+    ]);
+    assert!(ok, "{msg}");
+    assert!(tmp.path().join("one/checkpoint.json").is_file());
+    assert!(!tmp.path().join("one/sigma-0").exists());
     let (ok, msg) = fit("40", &["--resume"]);
     assert!(ok, "{msg}");
     let log = std::fs::read_to_string(p("fit/log.csv")).unwrap();

@@ -43,8 +43,9 @@ pub struct FitArgs {
     #[arg(long, default_value = "koch")]
     pub pattern: String,
     /// Scott's recipe instead of ifslab's: the best-fit-line start, --sigma as given, 128².
-    /// ifslab's (the default): the best of five starts, σ as wide as the picture's strokes,
-    /// 192² (robustness/README.md measures both).
+    /// ifslab's (the default): the best of five starts, σ as wide as the picture's strokes
+    /// and 0.75 and 0.5 times that (three fits, the one closest to the target kept), 192²
+    /// (robustness/README.md measures both).
     #[arg(long)]
     pub paper: bool,
     /// Which way round the target's shape is drawn: auto (decide from the picture),
@@ -61,6 +62,11 @@ pub struct FitArgs {
     /// takes the picture's stroke width instead (set --sigma to fix it). [default: 1.5]
     #[arg(long)]
     pub sigma: Option<f64>,
+    /// Multiples of the strokes' σ to fit at, one whole fit each, the one whose render agrees
+    /// best with the target kept (comma-separated; 1 = a single fit at the strokes' σ).
+    /// [default: 1,0.75,0.5; --paper: none]
+    #[arg(long, value_delimiter = ',')]
+    pub sigma_factors: Option<Vec<f64>>,
     /// Coarse to fine: σ at the first iteration, shrinking geometrically to --sigma.
     /// [default: none]
     #[arg(long)]
@@ -202,6 +208,12 @@ fn flag_table(a: &FitArgs) -> anyhow::Result<toml::Table> {
     t.set("sigma", super::float(a.sigma));
     // A width given is the width drawn.
     t.set("stroke_sigma", a.sigma.map(|_| false.into()));
+    t.set(
+        "sigma_factors",
+        a.sigma_factors
+            .as_ref()
+            .map(|f| toml::Value::Array(f.iter().map(|&x| x.into()).collect())),
+    );
     t.set("sigma_start", super::float(a.sigma_start));
     t.set("sigma_iterations", super::count(a.sigma_iterations));
     t.set("loss.levels", super::count(a.levels));

@@ -2,9 +2,13 @@
 //! the resolved config, the framed target (`target.npy` bit for bit, `target.png` to look
 //! at), checkpoints and `log.csv` as it goes, then the final render, the fitted pattern
 //! (a pattern file whose `meta` holds the view, depth and σ the fit used, so `ifslab sdf
-//! render` draws it as the fit saw it), the loss plot and `summary.json`.
+//! render` draws it as the fit saw it), the loss plot and `summary.json`. A fit at several
+//! widths σ (`sigma_factors`) runs each whole in a folder of its own (`sigma-0`, `sigma-1`,
+//! … with their checkpoints, starts and logs, each resumed where it stopped) and writes
+//! the kept one's render, pattern, log and loss plot where a single fit's would be.
 
 use std::path::Path;
+use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::Context;
@@ -12,12 +16,14 @@ use ifslab::model::segment::{Pattern, PatternFile, resolve_pattern};
 use ifslab::render::FIT_FILL;
 use ifslab::render::image_io::{BitDepth, save_grey_png};
 use ifslab::render::sdf::{SdfRaster, SdfRenderConfig, SdfView, WordTree};
+use ifslab_strategies::driver::plan::CHECKPOINT_FILE;
 use ifslab_strategies::problems::image::{
     FRAMED_TARGET_FILE, TARGET_READING_FILE, TargetReading, ensure_new_run_dir,
     load_framed_picture, load_framed_target, save_framed_target,
 };
 use ifslab_strategies::problems::sdf::{
-    CUTOFF_SIGMAS, INK, SdfConfig, run_sdf, sdf_problem, stretch_ink,
+    CUTOFF_SIGMAS, INK, SdfConfig, SdfOutcome, SdfProblem, at_sigma, run_sdf, sdf_problem,
+    stretch_ink, stroke_sigma_legs,
 };
 use serde::Serialize;
 
@@ -58,6 +64,166 @@ pub struct SdfSummary {
     pub returned: String,
     /// The returned control points.
     pub points: Vec<[f64; 2]>,
+    /// With several widths σ (`sigma_factors`), every fit, in the order they ran; the one
+    /// with the highest `iou` is the run's result (the first of equals).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub legs: Vec<SdfLegSummary>,
+}
+
+/// One fit of a run at several widths σ.
+#[derive(Clone, Debug, Serialize)]
+pub struct SdfLegSummary {
+    /// Its width σ in pixels.
+    pub sigma: f64,
+    /// Its folder inside the run's (`sigma-0`, `sigma-1`, …).
+    pub folder: String,
+    /// Its loss.
+    pub loss: f64,
+    /// IoU of its render and the target thresholded at 0.5 (what chooses among them).
+    pub iou: f64,
+    /// IoU against the truth, when given (reported only, never used to choose).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub truth_iou: Option<f64>,
+    /// Whether it is the run's result.
+    pub chosen: bool,
+    #[serde(skip)]
+    pattern: Pattern,
+}
+
+/// A finished fit with its render scored against the target.
+struct Leg {
+    problem: SdfProblem,
+    out: SdfOutcome,
+    image: Vec<f64>,
+    mse: f64,
+    iou: f64,
+}
+
+impl Leg {
+    fn score(problem: SdfProblem, out: SdfOutcome, ink: &[f64]) -> anyhow::Result<Leg> {
+        let image = problem.image(&out.theta)?;
+        let mse = image
+            .iter()
+            .zip(ink)
+            .map(|(a, b)| (a - b) * (a - b))
+            .sum::<f64>()
+            / image.len() as f64;
+        let pm: Vec<bool> = image.iter().map(|&v| v >= INK).collect();
+        let tm: Vec<bool> = ink.iter().map(|&v| v >= INK).collect();
+        let iou = ifslab::metrics::iou(&pm, &tm)?;
+        Ok(Leg {
+            problem,
+            out,
+            image,
+            mse,
+            iou,
+        })
+    }
+}
+
+/// The folder of a run's `i`-th fit at several widths σ.
+fn leg_folder(i: usize) -> String {
+    format!("sigma-{i}")
+}
+
+/// A run's result with the time this process spent on it.
+struct Timed {
+    leg: Leg,
+    seconds: f64,
+    /// Iterations this process ran (at least 1).
+    fresh: u64,
+}
+
+/// Reports a leg's iterations as part of the whole run's: positions offset by the legs
+/// before it, finished with the last leg only.
+struct LegProgress {
+    inner: Arc<dyn Progress>,
+    offset: u64,
+    last: bool,
+}
+
+impl Progress for LegProgress {
+    fn set_position(&self, done: u64) {
+        self.inner.set_position(self.offset + done);
+    }
+    fn message(&self, message: &str) {
+        self.inner.message(message);
+    }
+    fn finish(&self) {
+        if self.last {
+            self.inner.finish();
+        }
+    }
+}
+
+/// The fits of `cfg` at each width of `sigmas`, one after another, each whole in its own
+/// folder `sigma-<i>` of `dir` (so each checkpoints and resumes as a run of its own); the
+/// one whose render agrees best with the target (IoU of the half-inked pixels) is
+/// returned with all of them summarised.
+fn run_legs(
+    cfg: &SdfConfig,
+    ink: &[f64],
+    sigmas: &[f64],
+    dir: &Path,
+    resume: bool,
+    progress: Box<dyn Progress>,
+) -> anyhow::Result<(Timed, Vec<SdfLegSummary>)> {
+    let progress: Arc<dyn Progress> = Arc::from(progress);
+    progress.start(cfg.strategy.name(), cfg.iterations * sigmas.len() as u64);
+    let clock = Instant::now();
+    let mut fresh = 0;
+    let mut best: Option<(usize, Leg)> = None;
+    let mut summaries = Vec::with_capacity(sigmas.len());
+    for (i, &sigma) in sigmas.iter().enumerate() {
+        let leg_cfg = at_sigma(cfg, sigma);
+        let folder = leg_folder(i);
+        let leg_dir = dir.join(&folder);
+        // A leg the interrupted run had not checkpointed yet starts afresh.
+        let leg_resume = resume && leg_dir.join(CHECKPOINT_FILE).is_file();
+        let done_before = if leg_resume {
+            ifslab_strategies::driver::plan::checkpoint_iteration(&leg_dir)?
+        } else {
+            0
+        };
+        let observer = ProgressObserver::new(Box::new(LegProgress {
+            inner: progress.clone(),
+            offset: i as u64 * cfg.iterations,
+            last: i + 1 == sigmas.len(),
+        }));
+        let out = run_sdf(
+            &leg_cfg,
+            ink.to_vec(),
+            None,
+            &leg_dir,
+            leg_resume,
+            vec![Box::new(observer)],
+        )
+        .with_context(|| format!("the fit at σ = {sigma:.3} px ({folder})"))?;
+        fresh += out.iterations.saturating_sub(done_before);
+        let leg = Leg::score(sdf_problem(&leg_cfg, ink.to_vec(), None)?, out, ink)?;
+        summaries.push(SdfLegSummary {
+            sigma,
+            folder,
+            loss: leg.out.loss,
+            iou: leg.iou,
+            truth_iou: None,
+            chosen: false,
+            pattern: leg.problem.pattern_at(&leg.out.theta)?,
+        });
+        if best.as_ref().is_none_or(|(_, b)| leg.iou > b.iou) {
+            best = Some((i, leg));
+        }
+    }
+    let (chosen, leg) = best.context("no width σ to fit at")?;
+    summaries[chosen].chosen = true;
+    Ok((
+        Timed {
+            leg,
+            seconds: clock.elapsed().as_secs_f64(),
+            fresh: fresh.max(1),
+        },
+        summaries,
+    ))
 }
 
 impl SdfSummary {
@@ -144,6 +310,16 @@ pub fn run(
         )
     } else {
         ensure_new_run_dir(dir)?;
+        // A fit at several widths checkpoints in its legs' folders.
+        if dir.join(leg_folder(0)).join(CHECKPOINT_FILE).exists() {
+            anyhow::bail!(
+                "{} already holds a run ({}/checkpoint.json); continue it with --resume {} or \
+                 choose another output folder",
+                dir.display(),
+                leg_folder(0),
+                dir.display()
+            );
+        }
         let framed = load_framed_picture(&cfg.target, size, cfg.polarity)?;
         let mut t = framed.values;
         stretch_ink(&mut t);
@@ -171,25 +347,51 @@ pub fn run(
         true,
     )?;
     let ink: Vec<f64> = target.iter().map(|&v| v as f64).collect();
-    let done_before = if resume {
-        ifslab_strategies::driver::plan::checkpoint_iteration(dir)?
+    let legs = stroke_sigma_legs(cfg, stroke)?;
+    let (leg, legs) = if legs.len() > 1 {
+        run_legs(cfg, &ink, &legs, dir, resume, progress)?
     } else {
-        0
+        let done_before = if resume {
+            ifslab_strategies::driver::plan::checkpoint_iteration(dir)?
+        } else {
+            0
+        };
+        progress.start(cfg.strategy.name(), cfg.iterations);
+        let clock = Instant::now();
+        let out = run_sdf(
+            cfg,
+            ink.clone(),
+            stroke,
+            dir,
+            resume,
+            vec![Box::new(ProgressObserver::new(progress))],
+        )?;
+        let seconds = clock.elapsed().as_secs_f64();
+        let problem = sdf_problem(cfg, ink.clone(), stroke)?;
+        let scored = Leg::score(problem, out, &ink)?;
+        let fresh = scored.out.iterations.saturating_sub(done_before).max(1);
+        (
+            Timed {
+                leg: scored,
+                seconds,
+                fresh,
+            },
+            Vec::new(),
+        )
     };
-    progress.start(cfg.strategy.name(), cfg.iterations);
-    let clock = Instant::now();
-    let out = run_sdf(
-        cfg,
-        ink.clone(),
-        stroke,
-        dir,
-        resume,
-        vec![Box::new(ProgressObserver::new(progress))],
-    )?;
-    let seconds = clock.elapsed().as_secs_f64();
-    let problem = sdf_problem(cfg, ink.clone(), stroke)?;
+    let Timed {
+        leg,
+        seconds,
+        fresh,
+    } = leg;
+    let Leg {
+        problem,
+        out,
+        image,
+        mse,
+        iou,
+    } = leg;
     let fitted = problem.pattern_at(&out.theta)?;
-    let image = problem.image(&out.theta)?;
     let img32: Vec<f32> = image.iter().map(|&v| v as f32).collect();
     save_grey_png(
         &dir.join("render.png"),
@@ -208,43 +410,43 @@ pub fn run(
     });
     PatternFile::of(&fitted, Some(meta)).save(dir.join(FITTED_PATTERN_FILE))?;
     loss_plot(&out.log, &dir.join("loss.png"))?;
-    let mse = image
-        .iter()
-        .zip(&ink)
-        .map(|(a, b)| (a - b) * (a - b))
-        .sum::<f64>()
-        / image.len() as f64;
-    let pm: Vec<bool> = image.iter().map(|&v| v >= INK).collect();
-    let tm: Vec<bool> = ink.iter().map(|&v| v >= INK).collect();
-    let iou = ifslab::metrics::iou(&pm, &tm)?;
-    let truth_iou = match &cfg.truth {
-        Some(spec) => {
-            let truth = resolve_pattern(spec).with_context(|| format!("`truth` {spec}"))?;
-            Some(pattern_iou(
-                &truth,
-                &fitted,
-                TRUTH_SIZE,
-                cfg.depth,
-                TRUTH_SIGMA,
-            )?)
-        }
+    if !legs.is_empty() {
+        // The kept fit's log where a single fit's would be.
+        let log = std::fs::read(&out.log).with_context(|| format!("{}", out.log.display()))?;
+        ifslab::io::write_atomic(&dir.join("log.csv"), &log)?;
+    }
+    let truth = match &cfg.truth {
+        Some(spec) => Some(resolve_pattern(spec).with_context(|| format!("`truth` {spec}"))?),
         None => None,
     };
-    // Only this process's iterations were timed.
-    let fresh = out.iterations.saturating_sub(done_before).max(1);
+    let truth_iou = |p: &Pattern| -> anyhow::Result<Option<f64>> {
+        truth
+            .as_ref()
+            .map(|t| pattern_iou(t, p, TRUTH_SIZE, cfg.depth, TRUTH_SIGMA))
+            .transpose()
+    };
+    let legs = legs
+        .into_iter()
+        .map(|mut l| {
+            l.truth_iou = truth_iou(&l.pattern)?;
+            Ok(l)
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
     let summary = SdfSummary {
         pattern: fitted.name().to_owned(),
         strategy: cfg.strategy.name().to_owned(),
         iterations: out.iterations,
         seconds,
+        // Only this process's iterations were timed.
         seconds_per_iteration: out.seconds / fresh as f64,
         sigma: problem.sigma(),
         loss: out.loss,
         mse,
         iou,
-        truth_iou,
+        truth_iou: truth_iou(&fitted)?,
         returned: out.returned.to_owned(),
         points: fitted.points().to_vec(),
+        legs,
     };
     ifslab::io::write_atomic(
         &dir.join("summary.json"),

@@ -29,13 +29,13 @@ pub mod run;
 pub mod target;
 
 pub use barrier::scale_barrier;
-pub use config::{SdfConfig, SdfInitConfig};
+pub use config::{DEFAULT_SIGMA_FACTORS, SdfConfig, SdfInitConfig};
 pub use crossing::{MAX_CROSSING_DEPTH, crossing_depth2, crossing_penalty};
 pub use init::{PROBE_STEPS, SdfInit, candidate_starts, initial_points};
 pub use landscape::sdf_landscape;
 pub use learned::{LearnedConfig, LearnedPattern};
 pub use problem::{CUTOFF_SIGMAS, SDF_TERMS, SdfEval, SdfLossConfig, SdfProblem};
-pub use run::{SdfOutcome, best_start, run_sdf, sdf_problem};
+pub use run::{SdfOutcome, at_sigma, best_start, run_sdf, sdf_problem, stroke_sigma_legs};
 pub use target::{
     INK, STROKE_SIGMA_RANGE, best_fit_line, distance_transform, sigma_for_stroke, stretch_ink,
 };

@@ -14,7 +14,7 @@ use crate::error::{Error, Result};
 use crate::problems::sdf::config::SdfConfig;
 use crate::problems::sdf::init::{SdfInit, candidate_starts, initial_points};
 use crate::problems::sdf::problem::{SDF_TERMS, SdfProblem};
-use crate::problems::sdf::target::sigma_for_stroke;
+use crate::problems::sdf::target::{STROKE_SIGMA_RANGE, sigma_for_stroke};
 use ifslab::model::segment::PrimitiveKind;
 
 /// What a fit produced.
@@ -35,6 +35,39 @@ pub struct SdfOutcome {
     pub seconds: f64,
     /// The CSV log.
     pub log: PathBuf,
+}
+
+/// The widths σ a fit of `cfg` runs at, one whole fit each, when it runs more than one: the
+/// strokes' σ ([`sigma_for_stroke`] of the framed stroke width `stroke`) times each of
+/// `sigma_factors`, at least the lower bound of [`STROKE_SIGMA_RANGE`], each width once, in
+/// the factors' order. Empty when the fit runs once as `cfg` says: no factors, σ not from
+/// the strokes, a base figure that is not a segment, or no stroke measured.
+pub fn stroke_sigma_legs(cfg: &SdfConfig, stroke: Option<f64>) -> Result<Vec<f64>> {
+    let Some(w) = stroke.filter(|_| cfg.stroke_sigma && !cfg.sigma_factors.is_empty()) else {
+        return Ok(Vec::new());
+    };
+    if cfg.pattern()?.base().kind != PrimitiveKind::Segment {
+        return Ok(Vec::new());
+    }
+    let base = sigma_for_stroke(w);
+    let mut legs: Vec<f64> = Vec::new();
+    for f in &cfg.sigma_factors {
+        let s = (base * f).max(STROKE_SIGMA_RANGE.0);
+        if !legs.iter().any(|&l| (l - s).abs() < 1e-9) {
+            legs.push(s);
+        }
+    }
+    Ok(legs)
+}
+
+/// `cfg` with σ fixed at `sigma` (one leg of [`stroke_sigma_legs`]).
+pub fn at_sigma(cfg: &SdfConfig, sigma: f64) -> SdfConfig {
+    SdfConfig {
+        stroke_sigma: false,
+        sigma_factors: Vec::new(),
+        sigma,
+        ..cfg.clone()
+    }
 }
 
 /// The problem `cfg` describes for `target` (ink, `size × size`, seen as the unit square)
@@ -181,4 +214,46 @@ pub fn run_sdf(
         seconds: clock.elapsed().as_secs_f64(),
         log: plan.log_path(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_widths_are_the_strokes_sigma_times_each_factor_floored_and_once_each() {
+        let cfg = SdfConfig::new("t.png", "koch");
+        // A stroke whose σ is 4 px: 4, 3 and 2.
+        let w = 4.0 * 2.0 * std::f64::consts::LN_2.sqrt();
+        let legs = stroke_sigma_legs(&cfg, Some(w)).unwrap();
+        assert_eq!(legs.len(), 3);
+        for (l, e) in legs.iter().zip([4.0, 3.0, 2.0]) {
+            assert!((l - e).abs() < 1e-9, "{legs:?}");
+        }
+        // A one-pixel line at the floor: one width, the floor.
+        assert_eq!(
+            stroke_sigma_legs(&cfg, Some(0.5)).unwrap(),
+            vec![STROKE_SIGMA_RANGE.0]
+        );
+        // σ 1.2: 1.2, 0.9, and 0.6 raised to the floor 0.75.
+        let legs =
+            stroke_sigma_legs(&cfg, Some(1.2 * 2.0 * std::f64::consts::LN_2.sqrt())).unwrap();
+        assert_eq!(legs.len(), 3);
+        assert!((legs[2] - STROKE_SIGMA_RANGE.0).abs() < 1e-12, "{legs:?}");
+        // One fit as configured: no stroke measured, σ given, no factors, a filled figure.
+        assert!(stroke_sigma_legs(&cfg, None).unwrap().is_empty());
+        assert!(
+            stroke_sigma_legs(&at_sigma(&cfg, 2.0), Some(w))
+                .unwrap()
+                .is_empty()
+        );
+        let mut none = cfg.clone();
+        none.sigma_factors.clear();
+        assert!(stroke_sigma_legs(&none, Some(w)).unwrap().is_empty());
+        let carpet = SdfConfig::new("t.png", "carpet-square");
+        assert!(stroke_sigma_legs(&carpet, Some(w)).unwrap().is_empty());
+        // A leg draws at its width.
+        let leg = at_sigma(&cfg, 3.0);
+        assert!(!leg.stroke_sigma && leg.sigma == 3.0 && leg.sigma_factors.is_empty());
+    }
 }
