@@ -17,13 +17,16 @@ from ._code import builtin_codes, code, load_code, save_code
 from ._render import render, render_with_stats
 from ._images import load_image, save_image
 from ._runs import Result, fit_points, invert, load_run, resolve_config, run, sdf_fit
-from . import flame, splat
+from ._sweep import Collected, collect, sweep
+from . import flame, splat, suite
 
 __all__ = [
+    "Collected",
     "IfslabError",
     "Result",
     "builtin_codes",
     "code",
+    "collect",
     "fit_points",
     "flame",
     "invert",
@@ -38,4 +41,6 @@ __all__ = [
     "save_image",
     "sdf_fit",
     "splat",
+    "suite",
+    "sweep",
 ]

@@ -17,6 +17,7 @@ mod progress;
 mod render;
 mod runs;
 mod splat;
+mod sweep;
 
 use pyo3::prelude::*;
 
@@ -42,6 +43,9 @@ fn _ifslab(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(splat::encode_maps, m)?)?;
     m.add_function(wrap_pyfunction!(splat::decode_theta, m)?)?;
     m.add_function(wrap_pyfunction!(splat::splat_defaults, m)?)?;
+    m.add_function(wrap_pyfunction!(sweep::suite_score, m)?)?;
+    m.add_function(wrap_pyfunction!(sweep::sweep, m)?)?;
+    m.add_function(wrap_pyfunction!(sweep::collect_sweep, m)?)?;
     m.add_function(wrap_pyfunction!(save_png, m)?)?;
     m.add_function(wrap_pyfunction!(load_image, m)?)?;
     m.add_function(wrap_pyfunction!(interrupt_requested, m)?)?;
