@@ -86,8 +86,6 @@ pub struct SdfLegSummary {
     pub truth_iou: Option<f64>,
     /// Whether it is the run's result.
     pub chosen: bool,
-    #[serde(skip)]
-    pattern: Pattern,
 }
 
 /// A finished fit with its render scored against the target.
@@ -159,7 +157,7 @@ impl Progress for LegProgress {
 /// The fits of `cfg` at each width of `sigmas`, one after another, each whole in its own
 /// folder `sigma-<i>` of `dir` (so each checkpoints and resumes as a run of its own); the
 /// one whose render agrees best with the target (IoU of the half-inked pixels) is
-/// returned with all of them summarised.
+/// returned with all of them summarised, each scored by `truth_iou` too.
 fn run_legs(
     cfg: &SdfConfig,
     ink: &[f64],
@@ -167,6 +165,7 @@ fn run_legs(
     dir: &Path,
     resume: bool,
     progress: Box<dyn Progress>,
+    truth_iou: &dyn Fn(&Pattern) -> anyhow::Result<Option<f64>>,
 ) -> anyhow::Result<(Timed, Vec<SdfLegSummary>)> {
     let progress: Arc<dyn Progress> = Arc::from(progress);
     progress.start(cfg.strategy.name(), cfg.iterations * sigmas.len() as u64);
@@ -206,9 +205,8 @@ fn run_legs(
             folder,
             loss: leg.out.loss,
             iou: leg.iou,
-            truth_iou: None,
+            truth_iou: truth_iou(&leg.problem.pattern_at(&leg.out.theta)?)?,
             chosen: false,
-            pattern: leg.problem.pattern_at(&leg.out.theta)?,
         });
         if best.as_ref().is_none_or(|(_, b)| leg.iou > b.iou) {
             best = Some((i, leg));
@@ -347,9 +345,19 @@ pub fn run(
         true,
     )?;
     let ink: Vec<f64> = target.iter().map(|&v| v as f64).collect();
+    let truth = match &cfg.truth {
+        Some(spec) => Some(resolve_pattern(spec).with_context(|| format!("`truth` {spec}"))?),
+        None => None,
+    };
+    let truth_iou = |p: &Pattern| -> anyhow::Result<Option<f64>> {
+        truth
+            .as_ref()
+            .map(|t| pattern_iou(t, p, TRUTH_SIZE, cfg.depth, TRUTH_SIGMA))
+            .transpose()
+    };
     let legs = stroke_sigma_legs(cfg, stroke)?;
     let (leg, legs) = if legs.len() > 1 {
-        run_legs(cfg, &ink, &legs, dir, resume, progress)?
+        run_legs(cfg, &ink, &legs, dir, resume, progress, &truth_iou)?
     } else {
         let done_before = if resume {
             ifslab_strategies::driver::plan::checkpoint_iteration(dir)?
@@ -415,23 +423,11 @@ pub fn run(
         let log = std::fs::read(&out.log).with_context(|| format!("{}", out.log.display()))?;
         ifslab::io::write_atomic(&dir.join("log.csv"), &log)?;
     }
-    let truth = match &cfg.truth {
-        Some(spec) => Some(resolve_pattern(spec).with_context(|| format!("`truth` {spec}"))?),
-        None => None,
+    // The kept fit was scored against the truth with the others.
+    let truth_iou = match legs.iter().find(|l| l.chosen) {
+        Some(kept) => kept.truth_iou,
+        None => truth_iou(&fitted)?,
     };
-    let truth_iou = |p: &Pattern| -> anyhow::Result<Option<f64>> {
-        truth
-            .as_ref()
-            .map(|t| pattern_iou(t, p, TRUTH_SIZE, cfg.depth, TRUTH_SIGMA))
-            .transpose()
-    };
-    let legs = legs
-        .into_iter()
-        .map(|mut l| {
-            l.truth_iou = truth_iou(&l.pattern)?;
-            Ok(l)
-        })
-        .collect::<anyhow::Result<Vec<_>>>()?;
     let summary = SdfSummary {
         pattern: fitted.name().to_owned(),
         strategy: cfg.strategy.name().to_owned(),
@@ -443,7 +439,7 @@ pub fn run(
         loss: out.loss,
         mse,
         iou,
-        truth_iou: truth_iou(&fitted)?,
+        truth_iou,
         returned: out.returned.to_owned(),
         points: fitted.points().to_vec(),
         legs,
