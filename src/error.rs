@@ -153,6 +153,10 @@ pub enum Error {
     /// non-finite number) or views that do not go together (images of different sizes).
     #[error("invalid camera: {0}")]
     Camera(String),
+
+    /// Work its caller no longer wanted ([`crate::progress::Progress::cancelled`]).
+    #[error("cancelled: {0}")]
+    Cancelled(String),
 }
 
 impl Error {

@@ -18,6 +18,12 @@ pub trait Progress: Send + Sync {
     fn message(&self, _message: &str) {}
     /// The work is over.
     fn finish(&self) {}
+    /// Whether whoever waits for the work no longer wants it (a viewer's tile that left
+    /// the screen): the renderers poll it between batches and end with
+    /// [`crate::Error::Cancelled`]. Never, unless an implementation says so.
+    fn cancelled(&self) -> bool {
+        false
+    }
 }
 
 /// Reports nothing.

@@ -1,15 +1,16 @@
 //! `ifslab serve`'s HTTP endpoints, through a server started in-process on a free port and
 //! a plain TCP client: tiles at the top level and 2²⁰ deep, refusals, empty tiles, stale
-//! generations, the run folder's page.
+//! generations, the run folder's page, tiles cancelled when their client leaves, kept-alive
+//! connections that never wait for one another, a flame's tiles.
 
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use ifslab::model::IfsCode;
 use ifslab::model::affine::Affine2;
 use ifslab::model::code::Window;
-use ifslab_experiments::serve::{RunningServer, ServeOptions, Site, TileOptions, serve};
+use ifslab_experiments::serve::{RunningServer, ServeOptions, Site, TileOptions, TileStats, serve};
 
 /// A response: status, headers (lower-case names), body.
 struct Reply {
@@ -46,6 +47,39 @@ fn get(addr: SocketAddr, path: &str) -> Reply {
         .windows(4)
         .position(|w| w == b"\r\n\r\n")
         .expect("a header block");
+    parse_reply(&raw, end, path)
+}
+
+/// `GET path` on a kept-alive connection: the answer read to its `Content-Length`, the
+/// connection left open for the next request.
+fn get_kept(s: &mut TcpStream, path: &str) -> Reply {
+    write!(s, "GET {path} HTTP/1.1\r\nHost: x\r\n\r\n").unwrap();
+    let mut raw = Vec::new();
+    let mut byte = [0u8; 1];
+    while !raw.ends_with(b"\r\n\r\n") {
+        assert_eq!(
+            s.read(&mut byte).unwrap(),
+            1,
+            "{path}: the header block ends"
+        );
+        raw.push(byte[0]);
+    }
+    let end = raw.len() - 4;
+    let head = String::from_utf8_lossy(&raw).to_ascii_lowercase();
+    let len: usize = head
+        .lines()
+        .find_map(|l| l.strip_prefix("content-length:"))
+        .expect("a length")
+        .trim()
+        .parse()
+        .unwrap();
+    let mut body = vec![0u8; len];
+    s.read_exact(&mut body).unwrap();
+    raw.extend(body);
+    parse_reply(&raw, end, path)
+}
+
+fn parse_reply(raw: &[u8], end: usize, path: &str) -> Reply {
     let head = String::from_utf8(raw[..end].to_vec()).unwrap();
     let mut lines = head.split("\r\n");
     let status = lines
@@ -73,7 +107,15 @@ fn get(addr: SocketAddr, path: &str) -> Reply {
 }
 
 fn start(source: &str, points: u64) -> (RunningServer, Site) {
-    let opts = TileOptions { points, seed: 0 };
+    start_with(source, points, 2)
+}
+
+fn start_with(source: &str, points: u64, workers: usize) -> (RunningServer, Site) {
+    let opts = TileOptions {
+        points,
+        flame_samples: points,
+        seed: 0,
+    };
     let site = Site::load(source, opts).unwrap();
     let again = Site::load(source, opts).unwrap();
     let server = serve(
@@ -81,11 +123,27 @@ fn start(source: &str, points: u64) -> (RunningServer, Site) {
         &ServeOptions {
             host: "127.0.0.1".into(),
             port: 0,
-            workers: 2,
+            workers,
         },
     )
     .unwrap();
     (server, again)
+}
+
+/// Waits (at most `limit`) until `done` holds of the server's tile counts.
+fn wait_for(
+    server: &RunningServer,
+    limit: Duration,
+    done: impl Fn(&TileStats) -> bool,
+) -> (TileStats, Duration) {
+    let t = Instant::now();
+    loop {
+        let s = server.stats();
+        if done(&s) || t.elapsed() > limit {
+            return (s, t.elapsed());
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
 }
 
 /// The tile's RGBA pixels, and how many are inked (opaque).
@@ -346,4 +404,290 @@ fn a_run_folder_shows_target_and_recovered_code_side_by_side() {
     let empty = tempfile::tempdir().unwrap();
     let e = Site::load(empty.path().to_str().unwrap(), TileOptions::default()).unwrap_err();
     assert!(e.to_string().contains("without code.json"), "{e}");
+}
+
+/// A tile whose client leaves is not drawn on: a render under way stops at its next batch
+/// of points, and tiles still queued are skipped. One worker, tiles of 10⁸ points (about
+/// 1.6 s each on two cores): the first is dropped 300 ms in, the two queued behind it with
+/// it.
+#[test]
+fn a_client_that_leaves_cancels_its_tile() {
+    let (server, _) = start_with("sierpinski", 100_000_000, 1);
+    let addr = server.addr();
+    let ask = |x: u32| {
+        let mut s = TcpStream::connect(addr).unwrap();
+        write!(
+            s,
+            "GET /tile/sierpinski?level=2&x={x}&y=3 HTTP/1.1\r\nHost: x\r\n\r\n"
+        )
+        .unwrap();
+        s
+    };
+    let first = ask(0);
+    std::thread::sleep(Duration::from_millis(300));
+    let queued = [ask(1), ask(2)];
+    std::thread::sleep(Duration::from_millis(100));
+    drop(queued);
+    drop(first);
+    let (stats, took) = wait_for(&server, Duration::from_secs(20), |s| {
+        s.cancelled_drawing + s.cancelled_queued == 3
+    });
+    assert_eq!(
+        stats,
+        TileStats {
+            drawn: 0,
+            cancelled_queued: 2,
+            cancelled_drawing: 1,
+            stale: 0,
+        },
+        "after {took:?}"
+    );
+    assert!(
+        took < Duration::from_secs(1),
+        "the render stopped {took:?} after its client left"
+    );
+    eprintln!("the render stopped {took:?} after its client left");
+    let stats: serde_json::Value = serde_json::from_slice(&get(addr, "/stats.json").body).unwrap();
+    assert_eq!(stats["cancelled_drawing"], 1);
+    server.stop();
+}
+
+/// A render under way for a page that has moved to a newer generation stops, and its
+/// client hears 409.
+#[test]
+fn a_tile_of_a_stale_generation_stops_midway() {
+    let (server, _) = start_with("sierpinski", 100_000_000, 2);
+    let addr = server.addr();
+    let old = std::thread::spawn(move || {
+        let t = Instant::now();
+        let r = get(addr, "/tile/sierpinski?level=1&x=0&y=1&gen=1&sid=42");
+        (r.status, r.text(), t.elapsed())
+    });
+    std::thread::sleep(Duration::from_millis(300));
+    let mut newer = TcpStream::connect(addr).unwrap();
+    write!(
+        newer,
+        "GET /tile/sierpinski?level=1&x=1&y=1&gen=2&sid=42 HTTP/1.1\r\nHost: x\r\n\r\n"
+    )
+    .unwrap();
+    let (status, text, took) = old.join().unwrap();
+    assert_eq!(status, 409, "{text}");
+    assert!(text.contains("stale"), "{text}");
+    // A render that ran to its end would have been answered 200 (drawn is drawn).
+    eprintln!("the stale tile was answered 409 after {took:?}");
+    drop(newer);
+    let (stats, _) = wait_for(&server, Duration::from_secs(20), |s| {
+        s.cancelled_drawing == 1
+    });
+    assert_eq!(
+        (stats.stale, stats.cancelled_drawing, stats.drawn),
+        (1, 1, 0)
+    );
+    server.stop();
+}
+
+/// Kept-alive connections never wait for one another. tiny_http 0.12 (which this server
+/// ran on first) could leave a connection accepted just after another one queued until
+/// some connection closed — with a browser's six kept open, for minutes. Here 20 rounds
+/// of six connections opened at once (a browser's burst), each asking for three tiles one
+/// after the other on its kept-alive connection, beside 12 idle kept-alive connections: no
+/// answer may take more than 3 s.
+#[test]
+fn kept_alive_connections_never_wait_for_one_another() {
+    let (server, _) = start_with("sierpinski", 20_000, 2);
+    let addr = server.addr();
+    let mut idle: Vec<TcpStream> = Vec::new();
+    for _ in 0..12 {
+        let mut s = TcpStream::connect(addr).unwrap();
+        assert_eq!(get_kept(&mut s, "/info.json").status, 200);
+        idle.push(s);
+    }
+    let mut slowest = Duration::ZERO;
+    for round in 0..20u32 {
+        let burst: Vec<_> = (0..6u32)
+            .map(|c| {
+                std::thread::spawn(move || {
+                    let mut s = TcpStream::connect(addr).unwrap();
+                    s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+                    let mut slowest = Duration::ZERO;
+                    for k in 0..3u32 {
+                        let t = Instant::now();
+                        let path = format!(
+                            "/tile/sierpinski?level=3&x={}&y={}&size=32",
+                            (round + c) % 8,
+                            k
+                        );
+                        let r = get_kept(&mut s, &path);
+                        assert_eq!(r.status, 200, "{path}");
+                        assert_eq!(r.header("connection"), Some("keep-alive"));
+                        slowest = slowest.max(t.elapsed());
+                    }
+                    slowest
+                })
+            })
+            .collect();
+        for b in burst {
+            slowest = slowest.max(b.join().expect("every answer within the read timeout"));
+        }
+    }
+    assert!(
+        slowest < Duration::from_secs(3),
+        "slowest answer {slowest:?}"
+    );
+    eprintln!("slowest of 360 answers on kept-alive connections: {slowest:?}");
+    // The idle ones still answer.
+    for s in &mut idle {
+        assert_eq!(get_kept(s, "/viewer.css").status, 200);
+    }
+    server.stop();
+}
+
+/// Requests the server does not take are refused with a status and a reason.
+#[test]
+fn requests_other_than_get_are_refused() {
+    let (server, _) = start("sierpinski", 10_000);
+    let addr = server.addr();
+    for (raw, status) in [
+        ("POST / HTTP/1.1\r\nContent-Length: 3\r\n\r\nabc", 413),
+        ("DELETE / HTTP/1.1\r\n\r\n", 405),
+        ("GET / HTTP/3\r\n\r\n", 505),
+        ("GET nothing\r\n\r\n", 400),
+    ] {
+        let mut s = TcpStream::connect(addr).unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+        s.write_all(raw.as_bytes()).unwrap();
+        let mut out = String::new();
+        let _ = s.read_to_string(&mut out);
+        assert!(
+            out.starts_with(&format!("HTTP/1.1 {status} ")),
+            "{raw:?}: {out}"
+        );
+    }
+    server.stop();
+}
+
+/// The single flame of a `.flame` file, in tiles of the flame renderer: the top tile is
+/// `ifslab flame render --size 256 256 --quality Q` of it to the byte, a tile one level down
+/// is the quadrant of the 512² render with the same samples (the same chaos game, another
+/// camera), and the levels stop where the samples per pixel fall under one.
+#[test]
+fn a_flames_tiles_are_the_flame_renderers_pictures() {
+    use ifslab::model::flame::read_flames;
+    use ifslab::render::flame::{FlameRenderConfig, render_flame};
+    let repo = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let file = repo.join("paper_repro/fractal_flames/results/fig4_heart/learned.flame");
+    let mut flame = read_flames(&file).unwrap().remove(0);
+    assert_eq!((flame.size, flame.center), ([400, 400], [0.0, 0.0]));
+    flame.quality = 8.0;
+    flame.rotate = 30.0;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("heart.flame");
+    ifslab::model::flame::write_flames(&path, std::slice::from_ref(&flame)).unwrap();
+    // 65536 × 32 samples a tile: 32 per pixel at the top, 2 at level 2, ½ at level 3.
+    let samples = 65536 * 32;
+    let (server, site) = start_with(path.to_str().unwrap(), samples, 2);
+    let addr = server.addr();
+    assert_eq!(site.tiling.max_level(), 2);
+    let info: serde_json::Value = serde_json::from_slice(&get(addr, "/info.json").body).unwrap();
+    assert_eq!(info["modes"], serde_json::json!(["colour"]));
+    assert!(
+        info["note"].as_str().unwrap().contains("down to level 2"),
+        "{}",
+        info["note"]
+    );
+    let url = info["views"][0]["url"].as_str().unwrap().to_string();
+    let tile = |q: &str| {
+        let r = get(addr, &format!("{url}?{q}"));
+        assert_eq!(r.status, 200, "{q}: {}", r.text());
+        image::load_from_memory(&r.body).unwrap().to_rgba8()
+    };
+    let cfg = FlameRenderConfig::default();
+    let framed = |size: u32, quality: f64| {
+        let mut f = flame.clone();
+        f.scale *= size as f64 / 400.0;
+        f.size = [size, size];
+        f.quality = quality;
+        render_flame(&f, &cfg, None).unwrap()
+    };
+    // Level 0: quality 8 (under the 32 the samples allow).
+    let top = tile("level=0&x=0&y=0");
+    assert_eq!(top.as_raw(), &framed(256, 8.0).to_rgba8(false), "level 0");
+    // Level 1, the top-right quadrant: quality 32 on 256² = quality 8 on 512².
+    let quarter = tile("level=1&x=1&y=0");
+    let whole = framed(512, 8.0).to_rgba8(false);
+    let mut differ = 0usize;
+    let mut colours = std::collections::HashSet::new();
+    for y in 0..256usize {
+        for x in 0..256usize {
+            let a = &quarter.as_raw()[4 * (y * 256 + x)..][..3];
+            let b = &whole[4 * (y * 512 + 256 + x)..][..3];
+            differ += a.iter().zip(b).any(|(p, q)| p.abs_diff(*q) > 2) as usize;
+            colours.insert([b[0], b[1], b[2]]);
+        }
+    }
+    assert!(
+        colours.len() > 100,
+        "{} colours in the quadrant",
+        colours.len()
+    );
+    assert!(differ * 200 < 65536, "{differ} of 65536 pixels differ");
+    eprintln!(
+        "flame tile (1, 1, 0) against the 512² render's quadrant: {differ} of 65536 pixels differ, {} colours",
+        colours.len()
+    );
+    // Deeper than the density bound, and another view's mode, are refused.
+    assert_eq!(get(addr, &format!("{url}?level=3&x=0&y=0")).status, 400);
+    let r = get(addr, &format!("{url}?level=0&x=0&y=0&mode=density"));
+    assert_eq!(r.status, 400);
+    assert!(r.text().contains("`colour` for this view"), "{}", r.text());
+    server.stop();
+}
+
+/// A render whose progress says it is cancelled ends with `Error::Cancelled`, for a
+/// code's tiles and a flame's alike, before drawing its points.
+#[test]
+fn renders_stop_when_cancelled() {
+    struct Cancelled;
+    impl ifslab::progress::Progress for Cancelled {
+        fn cancelled(&self) -> bool {
+            true
+        }
+    }
+    let repo = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let flame = repo.join("paper_repro/fractal_flames/results/fig1_wisteria/learned.flame");
+    for source in ["sierpinski", flame.to_str().unwrap()] {
+        let site = Site::load(
+            source,
+            TileOptions {
+                points: 100_000_000,
+                flame_samples: 100_000_000,
+                seed: 0,
+            },
+        )
+        .unwrap();
+        let ifslab_experiments::serve::View::Tiles { renderer, .. } = site.views.last().unwrap()
+        else {
+            panic!("{source}: a tiled view");
+        };
+        let req = ifslab_experiments::serve::TileRequest::parse(
+            "level=0&x=0&y=0",
+            &site.tiling,
+            renderer.modes(),
+        )
+        .unwrap();
+        let t = Instant::now();
+        let e = renderer.render_png(&req, &Cancelled).unwrap_err();
+        assert!(
+            matches!(
+                e.downcast_ref::<ifslab::Error>(),
+                Some(ifslab::Error::Cancelled(_))
+            ),
+            "{source}: {e:#}"
+        );
+        assert!(
+            t.elapsed() < Duration::from_secs(1),
+            "{source}: {:?}",
+            t.elapsed()
+        );
+    }
 }

@@ -8,10 +8,12 @@
 // target) are the picture laid over the base window, one square per pixel.
 //
 // The initial view comes from the URL's fragment: #level=Z&x=CX&y=CY&mode=M&cmap=C, and
-// bare=1 for one view alone filling the window (view=NAME picks which). Each view change
+// bare=1 for one view alone filling the window (view=NAME picks which). Tiles the view no
+// longer shows are cancelled: their requests are aborted at the next frame (the browser
+// closes their connections, and the server stops drawing them). Each view change also
 // starts a new generation; tiles are asked for with it and the page's id, and the server
-// skips those of older generations still queued (answering 409, after which the tile is
-// asked for again if it is still shown).
+// skips or stops those of older generations (answering 409, after which the tile is asked
+// for again if it is still shown). A flame's tiles come in its own colours (mode colour).
 (function () {
   "use strict";
   const info = window.IFSLAB;
@@ -36,17 +38,25 @@
   if (num("y") !== null) view.cy = num("y");
   if (info.modes.includes(hash.get("mode"))) view.mode = hash.get("mode");
   if (info.cmaps.includes(hash.get("cmap"))) view.cmap = hash.get("cmap");
+  if (!info.modes.includes(view.mode)) view.mode = info.modes[0];
+  if (!info.cmaps.length) view.cmap = "";
   const bare = hash.get("bare") === "1";
 
   const tiles = new Map(); // key -> ImageBitmap, oldest first
-  const inflight = new Set(); // keys asked for, not answered yet
+  const inflight = new Map(); // keys asked for, not answered yet -> their AbortController
+  let wanted = new Set(); // keys the last frame still needed
   const failed = new Set();
   const $ = (id) => document.getElementById(id);
 
   document.title = "ifslab · " + info.title;
   $("title").textContent = info.title;
+  if (info.note) {
+    $("note").textContent = info.note;
+    $("note").title = info.note;
+  }
   for (const [id, list, value] of [["mode", info.modes, view.mode], ["cmap", info.cmaps, view.cmap]]) {
     const sel = $(id);
+    if (list.length < 2) sel.parentElement.hidden = true;
     for (const name of list) sel.add(new Option(name, name, false, name === value));
     sel.addEventListener("change", () => {
       view[id] = sel.value;
@@ -148,8 +158,9 @@
     clearTimeout(hashTimer);
     hashTimer = setTimeout(() => {
       const h = new URLSearchParams({
-        level: String(view.z), x: String(view.cx), y: String(view.cy), mode: view.mode, cmap: view.cmap,
+        level: String(view.z), x: String(view.cx), y: String(view.cy), mode: view.mode,
       });
+      if (view.cmap) h.set("cmap", view.cmap);
       if (bare) h.set("bare", "1");
       history.replaceState(null, "", "#" + h.toString());
     }, 200);
@@ -170,23 +181,15 @@
     $("message").textContent = text;
   }
 
-  // A tile not answered in TILE_WAIT ms is asked for again (at most TRIES times): tiny_http
-  // 0.12's connection pool can leave a kept-alive connection unserved until another one
-  // closes (see the server's docs); an aborted request frees it. The server keeps what it
-  // drew, so asking again costs nothing.
-  const TILE_WAIT = 6000;
-  const TRIES = 5;
-  const tries = new Map();
+  // Asks for a tile; a tile the view stops showing is aborted (see cancelStale).
   function fetchTile(key, url) {
-    inflight.add(key);
     const ctl = new AbortController();
-    const timer = setTimeout(() => ctl.abort(), TILE_WAIT);
+    inflight.set(key, ctl);
     fetch(url, { signal: ctl.signal })
       .then(async (r) => {
         if (r.ok) {
           const bmp = await createImageBitmap(await r.blob());
           tiles.set(key, bmp);
-          tries.delete(key);
           while (tiles.size > CACHE) tiles.delete(tiles.keys().next().value);
         } else if (r.status !== 409) {
           failed.add(key);
@@ -194,21 +197,31 @@
         }
       })
       .catch((e) => {
-        const n = (tries.get(key) || 0) + 1;
-        tries.set(key, n);
-        if (e.name !== "AbortError" || n >= TRIES) {
+        if (e.name !== "AbortError") {
           failed.add(key);
           message(`tile ${key}: ${e}`);
         }
       })
       .finally(() => {
-        clearTimeout(timer);
-        inflight.delete(key);
+        if (inflight.get(key) === ctl) inflight.delete(key);
         schedule();
       });
   }
 
+  // Aborts the requests of tiles the last frame did not need.
+  function cancelStale() {
+    for (const [key, ctl] of inflight) {
+      if (!wanted.has(key)) {
+        inflight.delete(key);
+        ctl.abort();
+        cancelled += 1;
+      }
+    }
+  }
+  let cancelled = 0;
+
   function draw() {
+    wanted = new Set();
     let waiting = 0;
     let level = 0;
     for (const p of panels) {
@@ -245,8 +258,10 @@
     const digits = Math.min(17, Math.max(5, Math.ceil(view.z * Math.LOG10E * Math.LN2) + 4));
     $("where").textContent =
       `zoom 2^${view.z.toFixed(2)} at (${view.cx.toPrecision(digits)}, ${view.cy.toPrecision(digits)}), tiles of level ${level}`;
-    // For tests and scripts: every tile of the view is drawn.
+    cancelStale();
+    // For tests and scripts: every tile of the view is drawn; tile requests aborted so far.
     document.documentElement.dataset.ready = waiting === 0 && inflight.size === 0 ? "true" : "false";
+    document.documentElement.dataset.cancelled = String(cancelled);
   }
 
   // The picture's pixels under the view, each as a square of the base window.
@@ -278,6 +293,7 @@
     const j1 = clamp(Math.floor((B.max[1] - vis.y0) / ts));
     if ((vis.x1 < B.min[0]) || (vis.x0 > B.max[0]) || (vis.y1 < B.min[1]) || (vis.y0 > B.max[1])) return 0;
     const key = (l, i, j) => `${def.name}/${view.mode}/${view.cmap}/${l}/${i}/${j}`;
+    const mode = def.modes.includes(view.mode) ? view.mode : def.modes[0];
     let missing = 0;
     for (let j = j0; j <= j1; j++) {
       for (let i = i0; i <= i1; i++) {
@@ -295,11 +311,12 @@
         }
         if (failed.has(k)) continue;
         missing += 1;
+        wanted.add(k);
         if (!inflight.has(k)) {
-          const q = new URLSearchParams({
-            level: String(level), x: String(i), y: String(j), mode: view.mode, cmap: view.cmap,
-            gen: String(gen), sid,
-          });
+          const q = new URLSearchParams({ level: String(level), x: String(i), y: String(j), mode });
+          if (view.cmap) q.set("cmap", view.cmap);
+          q.set("gen", String(gen));
+          q.set("sid", sid);
           fetchTile(k, `${def.url}?${q}`);
         }
         for (let d = 1; d <= 8 && d <= level; d++) {

@@ -4,8 +4,10 @@ use ifslab_experiments::serve::{ServeOptions, Site, TileOptions, serve};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// A code file (JSON), a built-in code's name, or a finished run folder (its target
-    /// and recovered code side by side, and its loss curve).
+    /// A code file (JSON), a built-in code's name, a finished run folder (its target and
+    /// recovered code side by side, and its loss curve), or a `.flame` file (its flames
+    /// laid over one another, in the flame renderer's tiles) or a folder with
+    /// `learned.flame`.
     pub source: String,
     /// Port to listen on (0: any free port).
     #[arg(long, default_value_t = 8080)]
@@ -13,9 +15,11 @@ pub struct Args {
     /// Address to listen on; the default serves this machine only.
     #[arg(long, default_value = "127.0.0.1")]
     pub host: String,
-    /// Chaos-game points per tile (at most 1e8): 1M, 5e6…
-    #[arg(long, default_value = "1M", value_parser = ifslab::budget::parse_count)]
-    pub points: u64,
+    /// Chaos-game points per tile (at most 1e8): 1M, 5e6… [default: 1M for a code, 4M
+    /// samples for a flame, whose tiles go 2^L deep at 1 sample per pixel while 4^L·65536
+    /// samples or fewer suffice]
+    #[arg(long, value_parser = ifslab::budget::parse_count)]
+    pub points: Option<u64>,
     /// Threads drawing tiles [default: the CPUs, 2 to 8].
     #[arg(long)]
     pub workers: Option<usize>,
@@ -25,14 +29,17 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let site = Site::load(
-        &a.source,
-        TileOptions {
-            points: a.points,
-            seed: a.seed,
-        },
-    )?;
+    let mut tiles = TileOptions {
+        seed: a.seed,
+        ..TileOptions::default()
+    };
+    if let Some(n) = a.points {
+        tiles.points = n;
+        tiles.flame_samples = n;
+    }
+    let site = Site::load(&a.source, tiles)?;
     let max_level = site.tiling.max_level();
+    let site_note = site.note.clone();
     let mut opts = ServeOptions {
         host: a.host,
         port: a.port,
@@ -53,6 +60,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         a.source,
         server.url()
     );
+    if let Some(note) = &site_note {
+        eprintln!("{note}");
+    }
     server.wait();
     Ok(())
 }

@@ -8,11 +8,17 @@
 //! costs what the full view costs. [`server`] answers the page's requests on a small pool of
 //! worker threads and skips tiles its page no longer shows.
 //!
+//! A `.flame` file (or a folder holding `learned.flame`, as `ifslab flame learn` writes it)
+//! is shown in tiles of the flame renderer, in the flame's own colours; how deep those go
+//! is bounded by the samples a tile may draw ([`flame`]).
+//!
 //! The page (`experiments/assets/viewer/`: one HTML file, one script, one style sheet, no
 //! build step) is compiled into the binary; it takes its initial view from the URL
 //! (`#level=20&x=0.3&y=0.0001`: the full view zoomed 2²⁰ around that point).
 
 pub mod colormap;
+pub mod flame;
+pub mod http;
 pub mod server;
 pub mod tile;
 
@@ -22,8 +28,11 @@ use anyhow::Context;
 use ifslab::model::IfsCode;
 use ifslab::render::{FIT_FILL, fit_window};
 
-pub use server::{RunningServer, ServeOptions, serve};
-pub use tile::{TileError, TileRenderer, TileRequest, Tiling};
+pub use flame::FlameTiles;
+pub use server::{RunningServer, ServeOptions, TileStats, serve};
+pub use tile::{TileError, TileMode, TileRenderer, TileRequest, Tiling};
+
+use ifslab::progress::Progress;
 
 use crate::codes::resolve_code;
 
@@ -33,8 +42,10 @@ pub const MAX_POINTS_PER_TILE: u64 = 100_000_000;
 /// How code views draw their tiles.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TileOptions {
-    /// Chaos-game points per tile (at most [`MAX_POINTS_PER_TILE`]).
+    /// Chaos-game points per code tile (at most [`MAX_POINTS_PER_TILE`]).
     pub points: u64,
+    /// Samples per flame tile (at most [`MAX_POINTS_PER_TILE`]): how deep flames go.
+    pub flame_samples: u64,
     /// Seed of every tile's chaos game.
     pub seed: u64,
 }
@@ -43,7 +54,42 @@ impl Default for TileOptions {
     fn default() -> Self {
         TileOptions {
             points: 1_000_000,
+            flame_samples: flame::DEFAULT_FLAME_SAMPLES,
             seed: 0,
+        }
+    }
+}
+
+/// What draws a view's tiles.
+#[derive(Debug)]
+pub enum TileSource {
+    /// A code, by the evaluation renderer with deep zoom.
+    Code(TileRenderer),
+    /// A flame (or layers of one), by the flame renderer.
+    Flame(FlameTiles),
+}
+
+impl TileSource {
+    /// The modes its tiles come in, the default first.
+    pub fn modes(&self) -> &'static [TileMode] {
+        match self {
+            TileSource::Code(_) => &[TileMode::Coverage, TileMode::Density],
+            TileSource::Flame(_) => &[TileMode::Colour],
+        }
+    }
+
+    /// The tile as a PNG file's bytes; `progress` may cancel it.
+    pub fn render_png(
+        &self,
+        req: &TileRequest,
+        progress: &dyn Progress,
+    ) -> anyhow::Result<Vec<u8>> {
+        match self {
+            TileSource::Code(r) => r.render_png(req, progress),
+            TileSource::Flame(f) => {
+                let rgba = f.render_rgba(req, progress)?;
+                tile::encode_png(&rgba, req.size, req.size)
+            }
         }
     }
 }
@@ -51,12 +97,12 @@ impl Default for TileOptions {
 /// One panel of the page.
 #[derive(Debug)]
 pub enum View {
-    /// A code drawn in tiles on demand.
+    /// A code or a flame drawn in tiles on demand.
     Tiles {
         /// The name the page and the tile URLs use.
         name: String,
         /// How its tiles are drawn.
-        renderer: TileRenderer,
+        renderer: TileSource,
     },
     /// A picture that covers the base window (a run's target).
     Picture {
@@ -87,21 +133,36 @@ pub struct Site {
     pub views: Vec<View>,
     /// A run's loss curve (`loss.png`).
     pub loss: Option<Vec<u8>>,
+    /// A line the page shows under its title (a flame's depth bound).
+    pub note: Option<String>,
 }
 
 impl Site {
     /// The site of a run folder (a folder with `code.json`), a code file or a built-in
     /// code's name.
     pub fn load(source: &str, tiles: TileOptions) -> anyhow::Result<Self> {
-        if !(1..=MAX_POINTS_PER_TILE).contains(&tiles.points) {
-            anyhow::bail!(
-                "points per tile must lie in 1..={MAX_POINTS_PER_TILE}, got {} (--points)",
-                tiles.points
-            );
+        for n in [tiles.points, tiles.flame_samples] {
+            if !(1..=MAX_POINTS_PER_TILE).contains(&n) {
+                anyhow::bail!(
+                    "points per tile must lie in 1..={MAX_POINTS_PER_TILE}, got {n} (--points)"
+                );
+            }
         }
         let path = Path::new(source);
+        if path.is_dir()
+            && path.join("learned.flame").is_file()
+            && !path.join("code.json").is_file()
+        {
+            return Self::flame(&path.join("learned.flame"), Some(path), tiles);
+        }
         if path.is_dir() {
             return Self::run_folder(path, tiles);
+        }
+        if path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("flame"))
+        {
+            return Self::flame(path, None, tiles);
         }
         let code = resolve_code(source)?;
         let name = code.name.clone().unwrap_or_else(|| "code".into());
@@ -111,9 +172,59 @@ impl Site {
             tiling,
             views: vec![View::Tiles {
                 name: url_name(&name),
-                renderer,
+                renderer: TileSource::Code(renderer),
             }],
             loss: None,
+            note: None,
+        })
+    }
+
+    /// A flame file's flames (layers laid over one another), and a flame run's target and
+    /// loss curve when `run` is its folder.
+    fn flame(file: &Path, run: Option<&Path>, tiles: TileOptions) -> anyhow::Result<Self> {
+        let samples = tiles.flame_samples;
+        let source = FlameTiles::load(file, None, samples, tiles.seed)?;
+        let tiling = source.tiling();
+        let deepest = tiling.max_level();
+        let note = format!(
+            "flame tiles: {samples} samples each, so at most {} samples per pixel at the top and \
+             1 or more down to level {deepest} (zoom 2^{deepest}); deeper, the tiles are enlarged \
+             (a flame has no deep zoom: 2^L deeper costs 4^L the samples; --points sets them)",
+            samples / (tile::TILE_SIZE_DEFAULT as u64).pow(2),
+        );
+        let stem = file
+            .file_stem()
+            .map_or("flame".into(), |s| s.to_string_lossy().into_owned());
+        let mut views = Vec::new();
+        let mut loss = None;
+        if let Some(dir) = run {
+            let target = dir.join("target.png");
+            if target.is_file() {
+                let png = std::fs::read(&target)
+                    .with_context(|| format!("reading {}", target.display()))?;
+                views.push(View::Picture {
+                    name: "target".into(),
+                    png,
+                });
+            }
+            let loss_path = dir.join("loss.png");
+            if loss_path.is_file() {
+                loss = Some(
+                    std::fs::read(&loss_path)
+                        .with_context(|| format!("reading {}", loss_path.display()))?,
+                );
+            }
+        }
+        views.push(View::Tiles {
+            name: url_name(&stem),
+            renderer: TileSource::Flame(source),
+        });
+        Ok(Site {
+            title: format!("flame {}", file.display()),
+            tiling,
+            views,
+            loss,
+            note: Some(note),
         })
     }
 
@@ -143,7 +254,7 @@ impl Site {
         }
         views.push(View::Tiles {
             name: "recovered".into(),
-            renderer,
+            renderer: TileSource::Code(renderer),
         });
         let loss_path = dir.join("loss.png");
         let loss = match loss_path.is_file() {
@@ -163,6 +274,7 @@ impl Site {
             tiling,
             views,
             loss,
+            note: None,
         })
     }
 
@@ -179,8 +291,9 @@ impl Site {
             .views
             .iter()
             .map(|v| match v {
-                View::Tiles { name, .. } => serde_json::json!({
+                View::Tiles { name, renderer } => serde_json::json!({
                     "name": name, "kind": "tiles", "url": format!("/tile/{name}"),
+                    "modes": renderer.modes().iter().map(|m| m.name()).collect::<Vec<_>>(),
                 }),
                 View::Picture { name, .. } => serde_json::json!({
                     "name": name, "kind": "picture", "url": format!("/picture/{name}.png"),
@@ -194,9 +307,28 @@ impl Site {
             "tile_size": tile::TILE_SIZE_DEFAULT,
             "views": views,
             "loss": self.loss.as_ref().map(|_| "/picture/loss.png"),
-            "modes": ["coverage", "density"],
-            "cmaps": colormap::Colormap::NAMES,
+            "modes": self.modes(),
+            "cmaps": match self.modes().contains(&"colour") {
+                true => Vec::new(),
+                false => colormap::Colormap::NAMES.to_vec(),
+            },
+            "note": self.note,
         })
+    }
+
+    /// The tile modes of the site's views, each once, in order.
+    fn modes(&self) -> Vec<&'static str> {
+        let mut modes = Vec::new();
+        for v in &self.views {
+            if let View::Tiles { renderer, .. } = v {
+                for m in renderer.modes() {
+                    if !modes.contains(&m.name()) {
+                        modes.push(m.name());
+                    }
+                }
+            }
+        }
+        modes
     }
 }
 

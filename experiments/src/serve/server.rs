@@ -1,39 +1,38 @@
-//! The HTTP side of `ifslab serve` (`tiny_http`: a blocking server without an async runtime,
-//! a few small crates on top of the standard library).
+//! The HTTP side of `ifslab serve` ([`super::http`]: HTTP/1.1 on the standard library's
+//! sockets, a thread per connection, no async runtime).
 //!
-//! One thread accepts requests and answers what costs nothing there — the page, its script,
-//! pictures, tiles already drawn, refusals — and queues tiles to draw for a pool of worker
-//! threads (each render runs on the renderer's own thread pool too).
+//! A connection's thread answers what costs nothing there — the page, its script, pictures,
+//! tiles already drawn, refusals — and queues tiles to draw for a pool of worker threads
+//! (each render runs on the renderer's own thread pool too), then waits for its tile.
 //!
-//! **Stale tiles.** The page numbers its views: each pan or zoom starts a new generation,
-//! and every tile request carries the page's id (`sid`, drawn when the page loads) and the
-//! generation it was asked for (`gen`). The accept thread records the latest generation
-//! seen per page; a worker that takes from the queue a tile of an older generation of its
-//! page does not draw it and answers `409 Conflict` ("stale"), and the page asks again,
-//! under its current generation, for the tiles it still shows. So a fast pan or a wheel
-//! spin costs the tiles of the view it ends on, not of every view it passed. Tiles without
-//! `gen` and `sid` are always drawn. A tile is not stopped halfway: at the default million
-//! points it takes tens of milliseconds.
+//! **Cancelled tiles.** A tile the page no longer needs is not drawn, or stops being drawn
+//! midway, in two ways:
+//! - *the client leaves*: when the page moves on it aborts the requests of tiles it no
+//!   longer shows, and the browser closes their connections. The thread waiting for a tile
+//!   looks at its socket every [`WATCH`]; once the client has closed it, the tile's cancel
+//!   flag is set: a worker that has not started it skips it, and a render under way stops
+//!   at its next batch of points (the renderers poll [`ifslab::progress::Progress::cancelled`]:
+//!   about 1/128 of a tile's points for a code, one trajectory of 10 000 for a flame).
+//! - *stale generations*: each pan or zoom starts a new generation of the page, and every
+//!   tile request carries the page's id (`sid`, drawn when the page loads) and its
+//!   generation (`gen`). The latest generation seen per page is recorded as requests
+//!   arrive; a tile of an older generation is not started, or is stopped, and answered
+//!   `409 Conflict` ("stale"); the page asks again, under its current generation, for the
+//!   tiles it still shows. Tiles without `gen` and `sid` are never stale.
 //!
-//! **A known flaw of tiny_http 0.12.** Its pool of connection threads has a race: a
-//! connection accepted while an idle thread is being woken for another one can wait in the
-//! pool's queue until some connection closes — and a browser keeps its connections open
-//! (Chromium: up to six per server, about five minutes idle). Measured with headless
-//! Chromium on the browser test: in 3 of 12 page loads a tile was still unanswered after
-//! 120 s (one came after 313 s). The page works around it by asking again for a tile not answered in 6 s (an
-//! aborted request closes its connection, which frees the queued one); a server that
-//! answers `Connection: close` (tiny_http does not let a response say so) or a pool without
-//! the race would remove it.
+//! `/stats.json` counts tiles drawn, cancelled before and during their render, and stale.
 
 use std::collections::{HashMap, VecDeque};
-use std::net::{IpAddr, SocketAddr};
-use std::sync::mpsc::{Receiver, Sender, channel};
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::net::{IpAddr, SocketAddr, TcpListener, TcpStream};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::sync::mpsc::{RecvTimeoutError, Sender, channel};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::thread::JoinHandle;
+use std::time::Duration;
 
 use anyhow::Context;
-use tiny_http::{Header, Method, Request, Response};
 
+use super::http::{self, Conn, ReadError, Response};
 use super::tile::TileRequest;
 use super::{Site, View};
 
@@ -49,6 +48,8 @@ const INFO_SLOT: &str = "/*IFSLAB_INFO*/null";
 const CACHE_BYTES: usize = 64 << 20;
 /// Most pages whose latest generation is remembered (then forgotten all at once).
 const MAX_PAGES: usize = 4096;
+/// How often a connection waiting for its tile looks whether its client is still there.
+pub const WATCH: Duration = Duration::from_millis(20);
 
 /// Where and how to serve.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -75,7 +76,7 @@ impl Default for ServeOptions {
 
 /// A server started by [`serve`]: its address, and its threads until [`RunningServer::stop`].
 pub struct RunningServer {
-    server: Arc<tiny_http::Server>,
+    shared: Arc<Shared>,
     addr: SocketAddr,
     accept: JoinHandle<()>,
     workers: Vec<JoinHandle<()>>,
@@ -92,6 +93,11 @@ impl RunningServer {
         format!("http://{}/", self.addr)
     }
 
+    /// What the tile workers did so far.
+    pub fn stats(&self) -> TileStats {
+        self.shared.stats.snapshot()
+    }
+
     /// Serves until the process ends.
     pub fn wait(self) {
         let _ = self.accept.join();
@@ -100,21 +106,73 @@ impl RunningServer {
         }
     }
 
-    /// Stops accepting, lets the workers finish the tiles queued, and returns.
+    /// Stops accepting, lets the workers finish the tiles queued, and returns (open
+    /// connections close within [`http::POLL`] once idle).
     pub fn stop(self) {
-        self.server.unblock();
-        self.wait();
+        self.shared.stop.store(true, Ordering::SeqCst);
+        // Wakes the accept loop.
+        let _ = TcpStream::connect_timeout(&self.addr, Duration::from_secs(1));
+        let _ = self.accept.join();
+        lock(&self.shared.queue).closed = true;
+        self.shared.ready.notify_all();
+        for w in self.workers {
+            let _ = w.join();
+        }
     }
 }
 
-/// A tile waiting for a worker.
-struct Job {
-    request: Request,
-    view: usize,
-    tile: TileRequest,
+/// What the tile workers did: tiles drawn, tiles cancelled before a worker took them up or
+/// while one drew them (their clients left), tiles of stale generations.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct TileStats {
+    /// Drawn and sent.
+    pub drawn: u64,
+    /// Skipped: the client had left before a worker took the tile up.
+    pub cancelled_queued: u64,
+    /// Stopped midway: the client left while the tile was drawn.
+    pub cancelled_drawing: u64,
+    /// Not drawn, or stopped, because their page had moved to a newer generation.
+    pub stale: u64,
 }
 
-/// What the accept thread and the workers share.
+#[derive(Default)]
+struct Stats {
+    drawn: AtomicU64,
+    cancelled_queued: AtomicU64,
+    cancelled_drawing: AtomicU64,
+    stale: AtomicU64,
+}
+
+impl Stats {
+    fn snapshot(&self) -> TileStats {
+        TileStats {
+            drawn: self.drawn.load(Ordering::SeqCst),
+            cancelled_queued: self.cancelled_queued.load(Ordering::SeqCst),
+            cancelled_drawing: self.cancelled_drawing.load(Ordering::SeqCst),
+            stale: self.stale.load(Ordering::SeqCst),
+        }
+    }
+}
+
+fn bump(c: &AtomicU64) {
+    c.fetch_add(1, Ordering::SeqCst);
+}
+
+/// A tile waiting for a worker, and where its answer goes.
+struct Job {
+    view: usize,
+    tile: TileRequest,
+    cancel: Arc<AtomicBool>,
+    reply: Sender<Response>,
+}
+
+#[derive(Default)]
+struct Queue {
+    jobs: VecDeque<Job>,
+    closed: bool,
+}
+
+/// What the connections and the workers share.
 struct Shared {
     site: Site,
     page: String,
@@ -122,6 +180,20 @@ struct Shared {
     /// Latest generation seen per page id.
     generations: Mutex<HashMap<u64, u64>>,
     cache: Mutex<TileCache>,
+    queue: Mutex<Queue>,
+    ready: Condvar,
+    stop: AtomicBool,
+    connections: AtomicUsize,
+    stats: Stats,
+}
+
+impl Shared {
+    /// The latest generation page `sid` asked for, if newer than `generation`.
+    fn newer(&self, generation: Option<(u64, u64)>) -> Option<u64> {
+        let (sid, generation) = generation?;
+        let latest = lock(&self.generations).get(&sid).copied()?;
+        (latest > generation).then_some(latest)
+    }
 }
 
 /// Drawn tiles by view and request key, oldest forgotten first.
@@ -172,13 +244,9 @@ pub fn serve(site: Site, opts: &ServeOptions) -> anyhow::Result<RunningServer> {
     if opts.workers == 0 {
         anyhow::bail!("--workers must be at least 1");
     }
-    let server = tiny_http::Server::http(SocketAddr::new(ip, opts.port))
-        .map_err(|e| anyhow::anyhow!("cannot listen on {}:{}: {e}", opts.host, opts.port))?;
-    let addr = server
-        .server_addr()
-        .to_ip()
-        .context("the server listens on an IP address")?;
-    let server = Arc::new(server);
+    let listener = TcpListener::bind(SocketAddr::new(ip, opts.port))
+        .with_context(|| format!("cannot listen on {}:{}", opts.host, opts.port))?;
+    let addr = listener.local_addr()?;
     let info = serde_json::to_string(&site.info())?;
     // JSON inside a script element: `<` escaped so no `</script>` can end it.
     let page = PAGE.replacen(INFO_SLOT, &info.replace('<', "\\u003c"), 1);
@@ -188,103 +256,125 @@ pub fn serve(site: Site, opts: &ServeOptions) -> anyhow::Result<RunningServer> {
         info,
         generations: Mutex::new(HashMap::new()),
         cache: Mutex::new(TileCache::default()),
+        queue: Mutex::new(Queue::default()),
+        ready: Condvar::new(),
+        stop: AtomicBool::new(false),
+        connections: AtomicUsize::new(0),
+        stats: Stats::default(),
     });
-    let (tx, rx) = channel::<Job>();
-    let rx = Arc::new(Mutex::new(rx));
     let workers = (0..opts.workers)
         .map(|i| {
-            let (shared, rx) = (shared.clone(), rx.clone());
+            let shared = shared.clone();
             std::thread::Builder::new()
                 .name(format!("ifslab-serve-{i}"))
-                .spawn(move || work(&shared, &rx))
+                .spawn(move || work(&shared))
         })
         .collect::<std::io::Result<Vec<_>>>()?;
     let accept = {
-        let (server, shared) = (server.clone(), shared.clone());
+        let shared = shared.clone();
         std::thread::Builder::new()
             .name("ifslab-serve-accept".into())
-            .spawn(move || {
-                for request in server.incoming_requests() {
-                    route(request, &shared, &tx);
-                }
-            })?
+            .spawn(move || accept(listener, shared))?
     };
     Ok(RunningServer {
-        server,
+        shared,
         addr,
         accept,
         workers,
     })
 }
 
-fn header(name: &str, value: &str) -> Header {
-    Header::from_bytes(name.as_bytes(), value.as_bytes()).expect("fixed ASCII header")
-}
-
-fn respond(request: Request, status: u16, content_type: &str, body: Vec<u8>) {
-    // Lengths are known: no chunked encoding.
-    let response = Response::from_data(body)
-        .with_chunked_threshold(usize::MAX)
-        .with_status_code(status)
-        .with_header(header("Content-Type", content_type));
-    let response = match (status, content_type) {
-        (200, "image/png") => response.with_header(header("Cache-Control", "max-age=3600")),
-        _ => response.with_header(header("Cache-Control", "no-store")),
-    };
-    // A page that went away is no error of the server's.
-    let _ = request.respond(response);
-}
-
-fn text(request: Request, status: u16, message: &str) {
-    respond(
-        request,
-        status,
-        "text/plain; charset=utf-8",
-        format!("{message}\n").into_bytes(),
-    );
-}
-
-/// Answers `request` or queues it for a worker.
-fn route(request: Request, shared: &Shared, queue: &Sender<Job>) {
-    if *request.method() != Method::Get {
-        return text(request, 405, "only GET is served");
-    }
-    let url = request.url().to_string();
-    let (path, query) = url.split_once('?').unwrap_or((&url, ""));
-    let site = &shared.site;
-    match path {
-        "/" | "/index.html" => {
-            let page = shared.page.clone().into_bytes();
-            respond(request, 200, "text/html; charset=utf-8", page)
+/// Gives each connection its own thread, at once.
+fn accept(listener: TcpListener, shared: Arc<Shared>) {
+    for stream in listener.incoming() {
+        if shared.stop.load(Ordering::SeqCst) {
+            return;
         }
-        "/viewer.js" => respond(
-            request,
+        let Ok(stream) = stream else { continue };
+        if shared.connections.fetch_add(1, Ordering::SeqCst) >= http::MAX_CONNECTIONS {
+            shared.connections.fetch_sub(1, Ordering::SeqCst);
+            if let Ok(mut c) = Conn::new(stream) {
+                let busy = format!("more than {} connections are open", http::MAX_CONNECTIONS);
+                c.respond(&Response::text(503, &busy), false, true);
+            }
+            continue;
+        }
+        let s = shared.clone();
+        let spawned = std::thread::Builder::new()
+            .name("ifslab-serve-conn".into())
+            .spawn(move || {
+                connection(stream, &s);
+                s.connections.fetch_sub(1, Ordering::SeqCst);
+            });
+        if spawned.is_err() {
+            shared.connections.fetch_sub(1, Ordering::SeqCst);
+        }
+    }
+}
+
+/// Answers a connection's requests one after the other until it closes.
+fn connection(stream: TcpStream, shared: &Shared) {
+    let Ok(mut conn) = Conn::new(stream) else {
+        return;
+    };
+    let stop = || shared.stop.load(Ordering::SeqCst);
+    loop {
+        let head = match conn.read_head(&stop) {
+            Ok(h) => h,
+            Err(ReadError::Closed) => return,
+            Err(ReadError::Bad(status, why)) => {
+                conn.respond(&Response::text(status, why), false, true);
+                return;
+            }
+        };
+        let response = match head.method.as_str() {
+            "GET" | "HEAD" => route(&head.target, shared, conn.stream()),
+            _ => Some(Response::text(405, "only GET is served")),
+        };
+        // None: the client left while its tile was drawn.
+        let Some(response) = response else { return };
+        let keep = head.keep_alive && !stop();
+        if !conn.respond(&response, keep, head.method != "HEAD") || !keep {
+            return;
+        }
+    }
+}
+
+fn png(body: Vec<u8>) -> Response {
+    Response::new(200, "image/png", body)
+}
+
+/// The answer to `target`; `None` when the client left before its tile was drawn.
+fn route(target: &str, shared: &Shared, stream: &TcpStream) -> Option<Response> {
+    let (path, query) = target.split_once('?').unwrap_or((target, ""));
+    let site = &shared.site;
+    let r = match path {
+        "/" | "/index.html" => Response::new(
+            200,
+            "text/html; charset=utf-8",
+            shared.page.clone().into_bytes(),
+        ),
+        "/viewer.js" => Response::new(
             200,
             "text/javascript; charset=utf-8",
             SCRIPT.as_bytes().to_vec(),
         ),
-        "/viewer.css" => respond(
-            request,
+        "/viewer.css" => Response::new(200, "text/css; charset=utf-8", STYLE.as_bytes().to_vec()),
+        "/LICENSE" => Response::text(200, LICENSE),
+        "/info.json" => Response::new(200, "application/json", shared.info.clone().into_bytes()),
+        "/stats.json" => Response::new(
             200,
-            "text/css; charset=utf-8",
-            STYLE.as_bytes().to_vec(),
+            "application/json",
+            serde_json::to_vec(&shared.stats.snapshot()).unwrap_or_default(),
         ),
-        "/LICENSE" => text(request, 200, LICENSE),
-        "/info.json" => {
-            let info = shared.info.clone().into_bytes();
-            respond(request, 200, "application/json", info)
-        }
-        "/picture/loss.png" if site.loss.is_some() => {
-            let png = site.loss.clone().unwrap_or_default();
-            respond(request, 200, "image/png", png)
-        }
+        "/picture/loss.png" if site.loss.is_some() => png(site.loss.clone().unwrap_or_default()),
         _ => {
             if let Some(name) = path
                 .strip_prefix("/picture/")
                 .and_then(|p| p.strip_suffix(".png"))
-                && let Some(View::Picture { png, .. }) = site.view(name)
+                && let Some(View::Picture { png: bytes, .. }) = site.view(name)
             {
-                return respond(request, 200, "image/png", png.clone());
+                return Some(png(bytes.clone()));
             }
             if let Some(name) = path.strip_prefix("/tile/")
                 && let Some(view) = site
@@ -292,21 +382,25 @@ fn route(request: Request, shared: &Shared, queue: &Sender<Job>) {
                     .iter()
                     .position(|v| v.name() == name && matches!(v, View::Tiles { .. }))
             {
-                return route_tile(request, view, query, shared, queue);
+                return route_tile(view, query, shared, stream);
             }
-            text(request, 404, &format!("nothing at {}", path.escape_debug()))
+            Response::text(404, &format!("nothing at {}", path.escape_debug()))
         }
-    }
+    };
+    Some(r)
 }
 
-fn route_tile(request: Request, view: usize, query: &str, shared: &Shared, queue: &Sender<Job>) {
-    let tile = match TileRequest::parse(query, &shared.site.tiling) {
+fn route_tile(view: usize, query: &str, shared: &Shared, stream: &TcpStream) -> Option<Response> {
+    let View::Tiles { renderer, .. } = &shared.site.views[view] else {
+        return Some(Response::text(500, "not a tiled view"));
+    };
+    let tile = match TileRequest::parse(query, &shared.site.tiling, renderer.modes()) {
         Ok(t) => t,
-        Err(e) => return text(request, 400, &e.to_string()),
+        Err(e) => return Some(Response::text(400, &e.to_string())),
     };
     let key = format!("{view}/{}", tile.key());
-    if let Some(png) = lock(&shared.cache).get(&key) {
-        return respond(request, 200, "image/png", png.to_vec());
+    if let Some(bytes) = lock(&shared.cache).get(&key) {
+        return Some(png(bytes.to_vec()));
     }
     if let Some((sid, generation)) = tile.generation {
         let mut seen = lock(&shared.generations);
@@ -316,59 +410,129 @@ fn route_tile(request: Request, view: usize, query: &str, shared: &Shared, queue
         let latest = seen.entry(sid).or_insert(generation);
         *latest = (*latest).max(generation);
     }
-    if let Err(e) = queue.send(Job {
-        request,
-        view,
-        tile,
-    }) {
-        // Only when every worker has ended.
-        text(e.0.request, 503, "the tile workers have stopped");
+    let (reply, answer) = channel();
+    let cancel = Arc::new(AtomicBool::new(false));
+    {
+        let mut q = lock(&shared.queue);
+        if q.closed {
+            return Some(Response::text(503, "the tile workers have stopped"));
+        }
+        q.jobs.push_back(Job {
+            view,
+            tile,
+            cancel: cancel.clone(),
+            reply,
+        });
+    }
+    shared.ready.notify_one();
+    loop {
+        match answer.recv_timeout(WATCH) {
+            Ok(r) => return Some(r),
+            Err(RecvTimeoutError::Timeout) => {
+                if http::client_gone(stream) {
+                    cancel.store(true, Ordering::SeqCst);
+                    return None;
+                }
+            }
+            Err(RecvTimeoutError::Disconnected) => {
+                return Some(Response::text(500, "the tile's worker ended without it"));
+            }
+        }
     }
 }
 
+/// What a render polls: its client left, or its page moved to a newer generation.
+struct Watch<'a> {
+    shared: &'a Shared,
+    job: &'a Job,
+}
+
+impl ifslab::progress::Progress for Watch<'_> {
+    fn cancelled(&self) -> bool {
+        self.job.cancel.load(Ordering::SeqCst)
+            || self.shared.newer(self.job.tile.generation).is_some()
+    }
+}
+
+fn stale(job: &Job, latest: u64) -> Response {
+    let (sid, generation) = job.tile.generation.unwrap_or_default();
+    Response::text(
+        409,
+        &format!(
+            "stale: generation {generation} of page {sid} is older than {latest}, the latest it \
+             asked for; not drawn"
+        ),
+    )
+}
+
 /// A worker: draws queued tiles until the queue closes.
-fn work(shared: &Shared, queue: &Mutex<Receiver<Job>>) {
+fn work(shared: &Shared) {
     loop {
-        let job = lock(queue).recv();
-        let Ok(Job {
-            request,
-            view,
-            tile,
-        }) = job
-        else {
-            return;
-        };
-        if let Some((sid, generation)) = tile.generation {
-            let latest = lock(&shared.generations).get(&sid).copied();
-            if let Some(latest) = latest
-                && latest > generation
-            {
-                text(
-                    request,
-                    409,
-                    &format!(
-                        "stale: generation {generation} of page {sid} is older than {latest}, \
-                         the latest it asked for; not drawn"
-                    ),
-                );
-                continue;
+        let job = {
+            let mut q = lock(&shared.queue);
+            loop {
+                if let Some(j) = q.jobs.pop_front() {
+                    break j;
+                }
+                if q.closed {
+                    return;
+                }
+                q = shared.ready.wait(q).unwrap_or_else(|e| e.into_inner());
             }
+        };
+        if job.cancel.load(Ordering::SeqCst) {
+            bump(&shared.stats.cancelled_queued);
+            continue;
         }
-        let View::Tiles { renderer, .. } = &shared.site.views[view] else {
-            text(request, 500, "not a tiled view");
+        if let Some(latest) = shared.newer(job.tile.generation) {
+            bump(&shared.stats.stale);
+            let _ = job.reply.send(stale(&job, latest));
+            continue;
+        }
+        let key = format!("{}/{}", job.view, job.tile.key());
+        if let Some(bytes) = lock(&shared.cache).get(&key) {
+            let _ = job.reply.send(png(bytes.to_vec()));
+            continue;
+        }
+        let View::Tiles { renderer, .. } = &shared.site.views[job.view] else {
+            let _ = job.reply.send(Response::text(500, "not a tiled view"));
             continue;
         };
+        let watch = Watch { shared, job: &job };
         // A panic in a render costs its tile, not the worker.
-        let drawn =
-            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| renderer.render_png(&tile)));
-        match drawn {
-            Ok(Ok(png)) => {
-                let png = Arc::new(png);
-                lock(&shared.cache).insert(format!("{view}/{}", tile.key()), png.clone());
-                respond(request, 200, "image/png", png.to_vec());
+        let drawn = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            renderer.render_png(&job.tile, &watch)
+        }));
+        let answer = match drawn {
+            Ok(Ok(bytes)) => {
+                bump(&shared.stats.drawn);
+                let bytes = Arc::new(bytes);
+                lock(&shared.cache).insert(key, bytes.clone());
+                png(bytes.to_vec())
             }
-            Ok(Err(e)) => text(request, 500, &format!("the tile was not drawn: {e:#}")),
-            Err(_) => text(request, 500, "the tile's render panicked"),
-        }
+            Ok(Err(e)) if is_cancelled(&e) => match shared.newer(job.tile.generation) {
+                Some(latest) => {
+                    bump(&shared.stats.stale);
+                    stale(&job, latest)
+                }
+                None => {
+                    bump(&shared.stats.cancelled_drawing);
+                    continue;
+                }
+            },
+            Ok(Err(e)) => Response::text(500, &format!("the tile was not drawn: {e:#}")),
+            Err(_) => Response::text(500, "the tile's render panicked"),
+        };
+        // A client that left is no error of the server's.
+        let _ = job.reply.send(answer);
     }
+}
+
+fn is_cancelled(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        matches!(
+            c.downcast_ref::<ifslab::Error>(),
+            Some(ifslab::Error::Cancelled(_))
+        )
+    })
 }

@@ -21,6 +21,7 @@ use std::fmt;
 
 use ifslab::model::affine::Affine2;
 use ifslab::model::code::Window;
+use ifslab::progress::Progress;
 use ifslab::render::{RenderConfig, RenderMode, View, Zoom, render, zoom_window};
 
 use super::colormap::Colormap;
@@ -35,6 +36,34 @@ pub const TILE_SIZE_MIN: u32 = 16;
 pub const LEVEL_CAP: u32 = 40;
 /// Doubles the renderer asks a window to span ([`ifslab::render::zoom_window`]'s bound).
 const WINDOW_DOUBLES: f64 = (1u64 << 20) as f64;
+
+/// How a tile is drawn.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TileMode {
+    /// Binary coverage of a code's attractor (a colour map's brightest colour).
+    Coverage,
+    /// A code's log density through a colour map.
+    Density,
+    /// A flame's own colours and tone map.
+    Colour,
+}
+
+impl TileMode {
+    /// The mode's name in a request.
+    pub fn name(self) -> &'static str {
+        match self {
+            TileMode::Coverage => "coverage",
+            TileMode::Density => "density",
+            TileMode::Colour => "colour",
+        }
+    }
+
+    fn from_name(name: &str) -> Option<Self> {
+        [TileMode::Coverage, TileMode::Density, TileMode::Colour]
+            .into_iter()
+            .find(|m| m.name() == name)
+    }
+}
 
 /// A tile request refused, with the parameter to change.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -121,6 +150,12 @@ impl Tiling {
         Ok(tiling)
     }
 
+    /// The tiling no deeper than `level`.
+    pub fn capped(mut self, level: u32) -> Self {
+        self.max_level = self.max_level.min(level);
+        self
+    }
+
     /// The square window level 0's single tile shows.
     pub fn base(&self) -> Window {
         self.base
@@ -156,8 +191,8 @@ pub struct TileRequest {
     pub y: u64,
     /// Side in pixels.
     pub size: u32,
-    /// Density or binary coverage.
-    pub mode: RenderMode,
+    /// Density or binary coverage (codes), or colour (flames).
+    pub mode: TileMode,
     /// Colour map of the inked pixels.
     pub cmap: Colormap,
     /// The page's view generation and the page's id: a tile of a generation older than the
@@ -166,12 +201,12 @@ pub struct TileRequest {
 }
 
 impl TileRequest {
-    /// Parses and checks a query string (`level=3&x=1&y=5&mode=density…`) against `tiling`.
-    pub fn parse(query: &str, tiling: &Tiling) -> Result<Self, TileError> {
+    /// Parses and checks a query string (`level=3&x=1&y=5&mode=density…`) against `tiling`
+    /// and the view's `modes` (the first one when the request names none).
+    pub fn parse(query: &str, tiling: &Tiling, modes: &[TileMode]) -> Result<Self, TileError> {
         let mut seen: Vec<&str> = Vec::new();
         let (mut level, mut x, mut y) = (None, None, None);
-        let (mut size, mut mode, mut cmap) =
-            (TILE_SIZE_DEFAULT, RenderMode::Coverage, Colormap::default());
+        let (mut size, mut mode, mut cmap) = (TILE_SIZE_DEFAULT, modes[0], Colormap::default());
         let (mut gen_, mut sid) = (None, None);
         for pair in query.split('&').filter(|p| !p.is_empty()) {
             let (key, value) = pair.split_once('=').unwrap_or((pair, ""));
@@ -195,14 +230,16 @@ impl TileRequest {
                     }
                 }
                 "mode" => {
-                    mode = match value {
-                        "coverage" => RenderMode::Coverage,
-                        "density" => RenderMode::Density,
+                    mode = match TileMode::from_name(value) {
+                        Some(m) if modes.contains(&m) => m,
                         _ => {
+                            let names: Vec<String> =
+                                modes.iter().map(|m| format!("`{}`", m.name())).collect();
                             return Err(TileError::Invalid {
                                 param: "mode",
                                 reason: format!(
-                                    "must be `coverage` or `density`, got `{}`",
+                                    "must be {} for this view, got `{}`",
+                                    names.join(" or "),
                                     shown(value)
                                 ),
                             });
@@ -254,12 +291,12 @@ impl TileRequest {
     /// The request without its generation: what makes two tiles the same picture.
     pub fn key(&self) -> String {
         format!(
-            "{}/{}/{}/{}/{:?}/{}",
+            "{}/{}/{}/{}/{}/{}",
             self.level,
             self.x,
             self.y,
             self.size,
-            self.mode,
+            self.mode.name(),
             self.cmap.name()
         )
     }
@@ -330,19 +367,29 @@ impl TileRenderer {
 
     /// The tile as RGBA pixels (row-major, row 0 at the top): the colour map on inked
     /// pixels, transparent elsewhere. A tile the attractor misses is a transparent tile.
-    pub fn render_rgba(&self, req: &TileRequest) -> anyhow::Result<Vec<u8>> {
+    /// `progress` may cancel the render ([`Progress::cancelled`]).
+    pub fn render_rgba(
+        &self,
+        req: &TileRequest,
+        progress: &dyn Progress,
+    ) -> anyhow::Result<Vec<u8>> {
+        let mode = match req.mode {
+            TileMode::Coverage => RenderMode::Coverage,
+            TileMode::Density => RenderMode::Density,
+            TileMode::Colour => anyhow::bail!("a code's tiles are drawn as coverage or density"),
+        };
         let cfg = RenderConfig {
             width: req.size,
             height: req.size,
             points: self.points,
-            mode: req.mode,
+            mode,
             seed: self.seed,
             view: View::Window(self.tiling.base),
             zoom: Some(self.tiling.zoom(req.level, req.x, req.y)),
             deep_zoom: true,
             ..RenderConfig::default()
         };
-        let raster = render(&self.maps, &self.probs, &cfg, None)?;
+        let raster = render(&self.maps, &self.probs, &cfg, Some(progress))?;
         let mut rgba = vec![0u8; raster.values.len() * 4];
         for (px, &v) in rgba.chunks_exact_mut(4).zip(&raster.values) {
             if v > 0.0 {
@@ -354,8 +401,12 @@ impl TileRenderer {
     }
 
     /// The tile as a PNG file's bytes.
-    pub fn render_png(&self, req: &TileRequest) -> anyhow::Result<Vec<u8>> {
-        let rgba = self.render_rgba(req)?;
+    pub fn render_png(
+        &self,
+        req: &TileRequest,
+        progress: &dyn Progress,
+    ) -> anyhow::Result<Vec<u8>> {
+        let rgba = self.render_rgba(req, progress)?;
         encode_png(&rgba, req.size, req.size)
     }
 }
@@ -410,8 +461,13 @@ mod tests {
     #[test]
     fn tile_parameters_are_checked() {
         let t = tiling();
-        let ok =
-            TileRequest::parse("level=3&x=7&y=0&mode=density&cmap=grey&gen=4&sid=9", &t).unwrap();
+        let modes = [TileMode::Coverage, TileMode::Density];
+        let ok = TileRequest::parse(
+            "level=3&x=7&y=0&mode=density&cmap=grey&gen=4&sid=9",
+            &t,
+            &modes,
+        )
+        .unwrap();
         assert_eq!(
             (ok.level, ok.x, ok.y, ok.size),
             (3, 7, 0, TILE_SIZE_DEFAULT)
@@ -428,12 +484,18 @@ mod tests {
             ("level=1&x=0&y=0&size=4096", "`size`"),
             ("level=1&x=0&y=0&size=0", "`size`"),
             ("level=1&x=0&y=0&mode=fancy", "`mode`"),
+            (
+                "level=1&x=0&y=0&mode=colour",
+                "`coverage` or `density` for this view",
+            ),
             ("level=1&x=0&y=0&cmap=jet", "`cmap`"),
             ("level=1&x=0&y=0&zoom=2", "unknown tile parameter `zoom`"),
             ("level=1&level=2&x=0&y=0", "given twice"),
             ("level=1&x=0&y=0&gen=3", "`sid`"),
         ] {
-            let e = TileRequest::parse(query, &t).unwrap_err().to_string();
+            let e = TileRequest::parse(query, &t, &modes)
+                .unwrap_err()
+                .to_string();
             assert!(e.contains(words), "{query}: {e}");
         }
     }

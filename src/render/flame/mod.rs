@@ -338,6 +338,9 @@ pub fn render_flame_with_isa(
                 let mut buf = Vec::with_capacity(HIT_BATCH);
                 let (lo, hi) = (g * trajectories / groups, (g + 1) * trajectories / groups);
                 for t in lo..hi {
+                    if progress.is_some_and(|p| p.cancelled()) {
+                        break;
+                    }
                     let n = l.min(per_pass - (t * l).min(per_pass));
                     if n == 0 {
                         continue;
@@ -351,6 +354,11 @@ pub fn render_flame_with_isa(
                 (hist, st)
             })
             .collect();
+        if progress.is_some_and(|p| p.cancelled()) {
+            return Err(Error::Cancelled(
+                "the render's caller stopped waiting".into(),
+            ));
+        }
         let mut it = results.into_iter();
         let (mut hist, st) = it.next().expect("at least one group");
         stats += st;

@@ -522,6 +522,11 @@ fn run_rounds<M: Map2, A: Accumulator>(
         let results: Vec<Result<()>> = (0..batches)
             .into_par_iter()
             .map(|b| {
+                if progress.is_some_and(|p| p.cancelled()) {
+                    return Err(Error::Cancelled(
+                        "the render's caller stopped waiting".into(),
+                    ));
+                }
                 let (lo, hi) = (b * LANES, ((b + 1) * LANES).min(t));
                 let ns: Vec<u64> = (lo..hi).map(|j| points_of(cfg.points, t, j)).collect();
                 let slot = rayon::current_thread_index().unwrap_or(0) % threads;
