@@ -14,8 +14,11 @@ did not draw, through the NeRF camera path rather than a turntable.json.
 
 OUT/ receives view_000.png ... and transforms.json, and truth.json, the code drawn (an
 ifslab-code/1 file, "dim": 3), for `ifslab invert3d OUT --truth OUT/truth.json`.
-The views are a turntable at --elevation degrees, starting 10 degrees off the +x axis
-(ifslab's turntables start on it), so only the poses can tell the reader where they are.
+The views are a turntable at --elevation degrees, starting --azimuth0 (10) degrees off the
++x axis (ifslab's turntables start on it), so only the poses can tell the reader where they
+are. Views to score a fit on, which it never saw, come from another elevation and azimuth:
+
+    python scripts/render3d_views.py random:3 OUT-other/ --views 4 --elevation 55 --azimuth0 32.5
 """
 
 import argparse
@@ -157,6 +160,10 @@ def main():
     ap.add_argument("--views", type=int, default=8)
     ap.add_argument("--size", type=int, default=64)
     ap.add_argument("--elevation", type=float, default=25.0)
+    ap.add_argument(
+        "--azimuth0", type=float, default=10.0,
+        help="azimuth of the first view, degrees (other angles draw views to score on)",
+    )
     ap.add_argument("--distance", type=float, default=4.0)
     ap.add_argument("--fov", type=float, default=50.0, help="horizontal field of view, degrees")
     ap.add_argument("--points", type=int, default=20000, help="trajectories (40 points each)")
@@ -177,7 +184,7 @@ def main():
     e = np.radians(a.elevation)
     frames = []
     for k in range(a.views):
-        az = np.radians(10.0) + 2 * np.pi * k / a.views
+        az = np.radians(a.azimuth0) + 2 * np.pi * k / a.views
         eye = a.distance * np.array([np.cos(e) * np.cos(az), np.cos(e) * np.sin(az), np.sin(e)])
         c2w = look_at(eye)
         name = f"view_{k:03d}"

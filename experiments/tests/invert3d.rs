@@ -50,6 +50,17 @@ fn the_tetrahedron_is_recovered_from_eight_views() {
         out.to_str().unwrap(),
         "--truth",
         "tetrahedron",
+        // Views drawn by the library's own blurred splat: fitted at 1×, σ 1.5 → 0.8, 100
+        // trajectories, without the ink guard (the defaults suit crisp views from
+        // elsewhere).
+        "--supersample",
+        "1",
+        "--sigma-final",
+        "0.8",
+        "--trajectories",
+        "100",
+        "--ink",
+        "0",
     ]);
     assert!(o.status.success(), "{}", text(&o));
     println!("{}", text(&o));

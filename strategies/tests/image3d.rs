@@ -102,6 +102,74 @@ fn the_gradient_matches_central_differences() {
     assert!((eval.terms[0].1 + 0.05 * volume - eval.loss).abs() <= 1e-12);
 }
 
+/// The ink guard: two of the tetrahedron's four maps, shrunk, draw less ink than its views
+/// hold, so the term `w·mean_v max(0, 1 − s − inkᵥ/targetᵥ)²` is positive and its
+/// gradient (a constant per view's pixels, through the splat's reverse pass) must match
+/// central differences like the rest of the loss; with the slack above the missing
+/// fraction it is 0 and so is its gradient.
+#[test]
+fn the_ink_guard_gradient_matches_central_differences() {
+    let (w, h) = (20, 16);
+    let cams = small_cameras(w, h);
+    let truth = sierpinski_tetrahedron();
+    let target = render_code(&truth, &cams, &small_render(), None, 9).unwrap();
+    let views = Views::new(cams, target).unwrap();
+    let start: Vec<SvdMap3> = truth[..2]
+        .iter()
+        .map(|m| {
+            let mut m = *m;
+            m.m *= 0.8;
+            encode_start(&m).unwrap()
+        })
+        .collect();
+    let make = |ink: f64, slack: f64| {
+        Image3dProblem::<f64>::new(&start, &views, small_render(), MsMse::new(0), 5)
+            .unwrap()
+            .with_ink(ink, slack)
+            .unwrap()
+    };
+    let theta = flat_params(&start);
+    let iter = 3;
+    let plain = make(0.0, 0.0).evaluate(&theta, iter).unwrap();
+    let problem = make(2.0, 0.0);
+    let eval = problem.evaluate(&theta, iter).unwrap();
+    let ink = eval.terms[2].1;
+    assert!(ink > 0.05, "two shrunk maps should lack ink: term {ink}");
+    assert!((plain.terms[0].1 + 2.0 * ink - eval.loss).abs() <= 1e-12);
+    let scale = eval.grad.iter().fold(0.0f64, |m, g| m.max(g.abs()));
+    let step = 1e-6;
+    for k in 0..theta.len() {
+        let mut plus = theta.clone();
+        plus[k] += step;
+        let mut minus = theta.clone();
+        minus[k] -= step;
+        let fd = (problem.cost(&plus, iter, 0.0).unwrap()
+            - problem.cost(&minus, iter, 0.0).unwrap())
+            / (2.0 * step);
+        assert!(
+            (fd - eval.grad[k]).abs() <= 2e-4 * scale,
+            "θ[{k}]: reverse pass {} against central difference {fd} (scale {scale})",
+            eval.grad[k]
+        );
+    }
+    // The guard pushes ink out: its gradient differs from the plain loss's.
+    let moved = eval
+        .grad
+        .iter()
+        .zip(&plain.grad)
+        .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+    assert!(
+        moved > 1e-3 * scale,
+        "the ink term left the gradient as it was"
+    );
+    // A slack of 0.95 forgives the missing ink: the same loss and gradient as without.
+    let forgiven = make(2.0, 0.95).evaluate(&theta, iter).unwrap();
+    assert_eq!(forgiven.terms[2].1, 0.0);
+    assert_eq!(forgiven.grad, plain.grad);
+    assert!(make(0.0, 0.0).with_ink(1.0, 1.0).is_err());
+    assert!(make(0.0, 0.0).with_ink(f64::NAN, 0.0).is_err());
+}
+
 /// Orthographic views of a solid ball of radius 0.5 at the origin: every view's silhouette
 /// is a disc of radius 0.5. The hull must hold the ball (every voxel whose centre lies
 /// within 0.45 of the origin) and lie inside the cylinders the views cut: nothing further
@@ -342,4 +410,43 @@ fn an_empty_hull_is_refused() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("visual hull is empty"), "{e}");
+}
+
+/// Views held out of a fit are spread around the turntable, the rest are fitted, and a
+/// split that leaves nothing to fit (or names a view past the last) is refused.
+#[test]
+fn held_out_views_are_spread_and_checked() {
+    let (w, h) = (12, 10);
+    let cams = turntable(
+        8,
+        25.0,
+        3.5,
+        Lens::pinhole_fov(55f64.to_radians(), w, h),
+        w,
+        h,
+    )
+    .unwrap();
+    let planes: Vec<f32> = (0..8 * w * h).map(|i| (i / (w * h)) as f32 / 8.0).collect();
+    let views = Views::new(cams, planes).unwrap();
+    let (fit, held) = views.hold_out(2).unwrap();
+    assert_eq!(held, vec![2, 6]);
+    assert_eq!(fit, vec![0, 1, 3, 4, 5, 7]);
+    let sub = views.subset(&held).unwrap();
+    assert_eq!(sub.len(), 2);
+    assert_eq!(sub.plane(1), views.plane(6));
+    assert_eq!(sub.cameras[0].pose(), views.cameras[2].pose());
+    assert!(
+        views
+            .hold_out(8)
+            .unwrap_err()
+            .to_string()
+            .contains("hold_out")
+    );
+    assert!(
+        views
+            .subset(&[1, 8])
+            .unwrap_err()
+            .to_string()
+            .contains("view 8")
+    );
 }

@@ -59,16 +59,16 @@ pub struct Args {
     /// Adam's learning rate (with --strategy adam).
     #[arg(long, default_value_t = 0.03)]
     pub lr: f64,
-    /// Chaos-game trajectories per step (150 kept points each). [default: 100]
+    /// Chaos-game trajectories per step (150 kept points each). [default: 400]
     #[arg(long)]
     pub trajectories: Option<usize>,
-    /// The splat's supersampling per side. [default: 1]
+    /// The splat's supersampling per side. [default: 4]
     #[arg(long)]
     pub supersample: Option<usize>,
     /// σ at the start, in supersampled pixels. [default: 1.5]
     #[arg(long)]
     pub sigma: Option<f64>,
-    /// σ at the end (geometric schedule). [default: 0.8]
+    /// σ at the end (geometric schedule). [default: 1]
     #[arg(long)]
     pub sigma_final: Option<f64>,
     /// Poolings of the multi-scale MSE on each view (0: plain MSE).
@@ -78,6 +78,22 @@ pub struct Args {
     /// (0: off).
     #[arg(long, default_value_t = 0.01)]
     pub volume: f64,
+    /// Weight of the ink guard: the mean over views of max(0, 1 − ink of the render / ink
+    /// of the view)², against fits that shrink to less ink than the views hold (0: off).
+    /// [default: 3]
+    #[arg(long)]
+    pub ink: Option<f64>,
+    /// Fraction of a view's ink a render may lack before the ink guard charges. [default: 0]
+    #[arg(long)]
+    pub ink_slack: Option<f64>,
+    /// Views held out of the fit and the hull, spread evenly around the list: the summary
+    /// scores baseline and fit on them.
+    #[arg(long, default_value_t = 0)]
+    pub hold_out: usize,
+    /// A second views folder (any cameras, the views' size) the fit never sees: the
+    /// summary scores baseline and fit on it (image loss, ink).
+    #[arg(long, value_name = "DIR")]
+    pub score_views: Option<PathBuf>,
     /// The code that made the views (a 3-D code file, or `tetrahedron` / `fern3d`): the
     /// summary then scores the baseline and the fit against it (voxel IoU at 64³ within
     /// one voxel, Chamfer distance).
@@ -120,6 +136,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let views = load_views(&a.views)
         .with_context(|| format!("reading the views in {}", a.views.display()))?;
     let truth = a.truth.as_deref().map(code3).transpose()?;
+    let other = match &a.score_views {
+        Some(dir) => Some(
+            load_views(dir)
+                .with_context(|| format!("reading the views to score in {}", dir.display()))?,
+        ),
+        None => None,
+    };
     let mut strategy = StrategyConfig::by_name(&a.strategy)?;
     strategy.update::<AdamConfig>(|c| c.lr = a.lr);
     let defaults = Render3dConfig::default();
@@ -141,6 +164,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         },
         loss_levels: a.loss_levels,
         volume: a.volume,
+        ink: a.ink.unwrap_or(Image3dConfig::default().ink),
+        ink_slack: a.ink_slack.unwrap_or(Image3dConfig::default().ink_slack),
+        hold_out: a.hold_out,
         ..Image3dConfig::default()
     };
     cfg.validate()?;
@@ -160,7 +186,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let observer = ProgressObserver::new(Box::new(Bar::of(pb)));
     let outcome = run_image3d(&cfg, &views, &out, &bar, vec![Box::new(observer)])?;
     let truth_ref = truth.as_ref().map(|(m, p)| (m.as_slice(), p.as_deref()));
-    let s = write_outputs(&out, &cfg, &views, &outcome, truth_ref)?;
+    let s = write_outputs(&out, &cfg, &views, &outcome, truth_ref, other.as_ref())?;
     println!(
         "{}: hull {} voxels + EM in {:.1} s, {} iterations in {:.1} s; loss baseline {:.5} → \
          fit {:.5} ({}){}",
@@ -180,6 +206,27 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             _ => String::new(),
         }
     );
+    print!(
+        "ink of the renders over the views': baseline {:.2}, fit {:.2}",
+        s.ink_ratio[0], s.ink_ratio[1]
+    );
+    match &s.held_out {
+        Some(h) => println!(
+            "; held-out views {:?}: loss baseline {:.5} → fit {:.5}, ink {:.2} → {:.2}",
+            h.views, h.loss[0], h.loss[1], h.ink_ratio[0], h.ink_ratio[1]
+        ),
+        None => println!(),
+    }
+    if let Some(h) = &s.other_views {
+        println!(
+            "other views ({}): loss baseline {:.5} → fit {:.5}, ink {:.2} → {:.2}",
+            h.views.len(),
+            h.loss[0],
+            h.loss[1],
+            h.ink_ratio[0],
+            h.ink_ratio[1]
+        );
+    }
     Ok(())
 }
 
@@ -204,6 +251,7 @@ fn render(a: &Args, spec: &str) -> anyhow::Result<()> {
     };
     let cameras = table.cameras(a.size, a.size)?;
     let mut render = Render3dConfig::default().multi_view();
+    render.supersample = 1;
     render.sigma = 0.8;
     render.game.trajectories = 400;
     let planes = render_code(&maps, &cameras, &render, probs.as_deref(), a.seed)?;

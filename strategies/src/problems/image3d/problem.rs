@@ -2,7 +2,9 @@
 //! multi-view splat ([`MultiViewSplat`], one plane per camera) → the 2-D image loss
 //! ([`MsMse`]; 0 poolings is the plain MSE) on every view, averaged over the views → the
 //! gradient through the splat's reverse pass; plus, optionally, `w·Σᵢ |det Mᵢ|`, the
-//! volume the maps' images take of the attractor's (see [`Image3dProblem::with_volume`]).
+//! volume the maps' images take of the attractor's (see [`Image3dProblem::with_volume`]);
+//! plus, optionally, `w·mean over views of max(0, 1 − s − ink/ink of the view)²`, a guard
+//! against fits that draw less ink than the views hold (see [`Image3dProblem::with_ink`]).
 //! [`Differentiable`] and [`Anneal`], so every strategy of the registry runs it.
 
 use ifslab::loss::{ImageLoss, MsMse};
@@ -17,7 +19,7 @@ use crate::optim::annealing::Anneal;
 use crate::problems::image3d::views::Views;
 
 /// Names of the logged loss terms (unweighted).
-pub const IMAGE3D_TERMS: [&str; 2] = ["view_loss", "volume"];
+pub const IMAGE3D_TERMS: [&str; 3] = ["view_loss", "volume", "ink"];
 
 /// Fit SVD maps of space to views (see the module docs), the views drawn and scored in
 /// `T` (f32 for runs; f64 for checks against finite differences).
@@ -33,6 +35,12 @@ pub struct Image3dProblem<T = f32> {
     loss: MsMse,
     /// Weight of `Σᵢ |det Mᵢ|`.
     volume: f64,
+    /// Weight of the ink deficit.
+    ink: f64,
+    /// Fraction of a view's ink a render may lack before the ink term charges.
+    ink_slack: f64,
+    /// Each view's ink (the mean of its plane).
+    target_ink: Vec<f64>,
     seed: u64,
 }
 
@@ -52,6 +60,12 @@ impl<T: SplatReal> Image3dProblem<T> {
         }
         // Checks the config and the cameras as the splat will.
         MultiViewSplat::<SvdMap3, T>::new(render.clone(), views.cameras.clone())?;
+        let pixels = views.size().0 * views.size().1;
+        let target_ink = views
+            .planes
+            .chunks_exact(pixels)
+            .map(|p| p.iter().map(|&v| f64::from(v)).sum::<f64>() / pixels as f64)
+            .collect();
         Ok(Image3dProblem {
             reflect: start.iter().map(SvdMap3::reflect).collect(),
             cameras: views.cameras.clone(),
@@ -64,8 +78,77 @@ impl<T: SplatReal> Image3dProblem<T> {
             sigma_schedule: None,
             loss,
             volume: 0.0,
+            ink: 0.0,
+            ink_slack: 0.0,
+            target_ink,
             seed,
         })
+    }
+
+    /// Adds `weight·(1/V)·Σ_views max(0, 1 − slack − inkᵥ/targetᵥ)²` to the loss, `inkᵥ`
+    /// the mean of view `v`'s render and `targetᵥ` of its picture (views without ink are
+    /// skipped); `slack` in [0, 1) is the fraction of the ink a render may lack for free.
+    /// The image loss alone lets a fit that has not found where the thin parts of a shape
+    /// go shrink to fewer, denser clumps: ink put in the wrong place costs twice what ink
+    /// left out costs, so drawing less lowers it while the attractor moves away from the
+    /// truth. The term costs nothing while a render holds the view's ink and grows with
+    /// the missing fraction.
+    pub fn with_ink(mut self, weight: f64, slack: f64) -> Result<Self> {
+        if !(weight.is_finite() && weight >= 0.0) {
+            return Err(Error::param(
+                "ink",
+                format!("must be finite and ≥ 0, got {weight}"),
+            ));
+        }
+        if !(0.0..1.0).contains(&slack) {
+            return Err(Error::param(
+                "ink_slack",
+                format!("must lie in [0, 1), got {slack}"),
+            ));
+        }
+        self.ink = weight;
+        self.ink_slack = slack;
+        Ok(self)
+    }
+
+    /// The ink term of `image` (all views, unweighted) and, when `grad` is given, its
+    /// gradient times `weight` added into it.
+    fn ink_term(&self, image: &[T], weight: f64, grad: Option<&mut [T]>) -> f64 {
+        let pixels = self.cameras[0].width() * self.cameras[0].height();
+        let n = self.cameras.len() as f64;
+        let mut total = 0.0;
+        let mut slopes = Vec::with_capacity(self.target_ink.len());
+        for (plane, &target) in image.chunks_exact(pixels).zip(&self.target_ink) {
+            let ink = plane.iter().map(|v| v.to_f64().unwrap_or(0.0)).sum::<f64>() / pixels as f64;
+            let deficit = if target > 1e-9 {
+                (1.0 - self.ink_slack - ink / target).max(0.0)
+            } else {
+                0.0
+            };
+            total += deficit * deficit / n;
+            // ∂/∂pixel of deficit²/n = −2·deficit/(target·pixels·n).
+            slopes.push(if deficit > 0.0 {
+                -2.0 * deficit / (target * pixels as f64 * n)
+            } else {
+                0.0
+            });
+        }
+        if let Some(grad) = grad
+            && weight > 0.0
+        {
+            for (g, &slope) in grad.chunks_exact_mut(pixels).zip(&slopes) {
+                if slope != 0.0 {
+                    let d = T::from(weight * slope).unwrap_or_else(T::zero);
+                    g.iter_mut().for_each(|v| *v = *v + d);
+                }
+            }
+        }
+        total
+    }
+
+    /// Each view's ink (the mean of its picture).
+    pub fn target_ink(&self) -> &[f64] {
+        &self.target_ink
     }
 
     /// Adds `weight·Σᵢ |det Mᵢ|` to the loss. Silhouettes do not tell a solid from a
@@ -195,7 +278,8 @@ impl<T: SplatReal> Image3dProblem<T> {
         let (image, _) = splat.forward(&maps, &sampling)?;
         let (loss, _) = self.objective(&image)?;
         let volume = Self::volume_term(&maps, 0.0, None);
-        Ok((loss + self.volume * volume, image))
+        let ink = self.ink_term(&image, 0.0, None);
+        Ok((loss + self.volume * volume + self.ink * ink, image))
     }
 
     /// The loss of θ (views and volume term) on random stream `stream` at progress `frac`
@@ -210,13 +294,17 @@ impl<T: SplatReal> Differentiable for Image3dProblem<T> {
         let maps = self.maps_at(theta)?;
         let splat = self.splat(self.frac(iter))?;
         let sampling = splat.sampling(&maps, self.seed, iter);
-        let (view_loss, mut grad) =
-            value_and_grad(&splat, &maps, &sampling, |image| self.objective(image))?;
+        let mut ink = 0.0;
+        let (view_loss, mut grad) = value_and_grad(&splat, &maps, &sampling, |image| {
+            let (l, mut g) = self.objective(image)?;
+            ink = self.ink_term(image, self.ink, Some(&mut g));
+            Ok::<_, Error>((l, g))
+        })?;
         let volume = Self::volume_term(&maps, self.volume, Some(&mut grad));
         Ok(Evaluation {
-            loss: view_loss + self.volume * volume,
+            loss: view_loss + self.volume * volume + self.ink * ink,
             grad,
-            terms: vec![("view_loss", view_loss), ("volume", volume)],
+            terms: vec![("view_loss", view_loss), ("volume", volume), ("ink", ink)],
         })
     }
 

@@ -53,6 +53,8 @@ pub struct Image3dOutcome {
     pub svd_maps: Vec<SvdMap3>,
     /// The baseline: the visual hull's EM code.
     pub baseline: Vec<Affine3>,
+    /// The same code as the fit's parameterisation holds it.
+    pub baseline_svd: Vec<SvdMap3>,
     /// `start` or `last`: which the run returns (the lower loss on fixed streams).
     pub returned: &'static str,
     /// The loss of the start (mean over views, final σ, fixed streams).
@@ -63,6 +65,11 @@ pub struct Image3dOutcome {
     pub loss: f64,
     /// Strategy iterations run.
     pub iterations: u64,
+    /// Ink of the baseline's and the returned code's renders over the fitted views' ink
+    /// (means over views; 1: as much as the views hold).
+    pub ink_ratio: [f64; 2],
+    /// Scores on the held-out views, when some were held out.
+    pub held_out: Option<HeldOut3d>,
     /// Voxels of the visual hull.
     pub hull_voxels: usize,
     /// Seconds of the hull and its EM fit.
@@ -71,6 +78,60 @@ pub struct Image3dOutcome {
     pub fit_seconds: f64,
     /// The CSV log.
     pub log: PathBuf,
+}
+
+/// Image scores on views the fit did not see (final σ, the selection streams).
+#[derive(Clone, Debug, Serialize)]
+pub struct HeldOut3d {
+    /// Which views (indices into the folder's list).
+    pub views: Vec<usize>,
+    /// The image loss (the fit's, without volume and ink terms): baseline, then fit.
+    pub loss: [f64; 2],
+    /// Ink of the renders over the views' ink: baseline, then fit.
+    pub ink_ratio: [f64; 2],
+}
+
+/// Image scores of the `baseline` and `fit` codes on `views` (pictures the fit did not
+/// see: held out of the folder, or drawn apart), rendered as the fit renders at its final
+/// σ on the selection streams; `indices` names the views in the summary.
+pub fn score_views(
+    cfg: &Image3dConfig,
+    baseline: &[SvdMap3],
+    fit: &[SvdMap3],
+    views: &Views,
+    indices: Vec<usize>,
+) -> Result<HeldOut3d> {
+    let score = |maps: &[SvdMap3]| -> Result<(f64, f64)> {
+        let mut scorer =
+            Image3dProblem::<f32>::new(maps, views, cfg.render.multi_view(), cfg.loss(), cfg.seed)?;
+        if let Some(end) = cfg.render.sigma_final {
+            scorer = scorer.with_sigma_schedule(end, cfg.iterations)?;
+        }
+        let theta = flat_params(maps);
+        Ok((
+            selection_loss(&scorer, &theta)?,
+            ink_ratio(&scorer, &theta)?,
+        ))
+    };
+    let (b, f) = (score(baseline)?, score(fit)?);
+    Ok(HeldOut3d {
+        views: indices,
+        loss: [b.0, f.0],
+        ink_ratio: [b.1, f.1],
+    })
+}
+
+/// The mean over the selection streams of θ's ink over the targets' ink (each a mean
+/// over views, final σ).
+fn ink_ratio(problem: &Image3dProblem, theta: &[f64]) -> Result<f64> {
+    let target: f64 = problem.target_ink().iter().sum();
+    let mut total = 0.0;
+    for &s in &SELECTION_STREAMS {
+        let (_, image) = problem.render(theta, s, 1.0)?;
+        total += image.iter().map(|&v| f64::from(v)).sum::<f64>()
+            / (image.len() / problem.target_ink().len()) as f64;
+    }
+    Ok(total / SELECTION_STREAMS.len() as f64 / target.max(1e-12))
 }
 
 /// The mean loss of θ over the selection streams at the end of the σ schedule.
@@ -112,6 +173,16 @@ pub fn run_image3d(
     let text = toml::to_string(cfg).map_err(|e| Error::Numerical(format!("config: {e}")))?;
     ifslab::io::write_atomic(&dir.join(CONFIG_FILE), text.as_bytes())?;
 
+    let (fit_views, held_views) = if cfg.hold_out > 0 {
+        let (fit, held) = views.hold_out(cfg.hold_out)?;
+        (
+            views.subset(&fit)?,
+            Some((held.clone(), views.subset(&held)?)),
+        )
+    } else {
+        (views.clone(), None)
+    };
+    let views = &fit_views;
     progress.message("carving the visual hull and fitting EM to it");
     let clock = Instant::now();
     let hull = visual_hull(views, &cfg.hull)?;
@@ -134,7 +205,8 @@ pub fn run_image3d(
         cfg.loss(),
         cfg.seed,
     )?
-    .with_volume(cfg.volume)?;
+    .with_volume(cfg.volume)?
+    .with_ink(cfg.ink, cfg.ink_slack)?;
     if let Some(end) = cfg.render.sigma_final {
         problem = problem.with_sigma_schedule(end, cfg.iterations)?;
     }
@@ -157,15 +229,27 @@ pub fn run_image3d(
         _ => (start, "start", start_loss),
     };
     let svd_maps = problem.maps_at(&theta)?;
+    let baseline_theta = flat_params(&baseline);
+    let ink = [
+        ink_ratio(&problem, &baseline_theta)?,
+        ink_ratio(&problem, &theta)?,
+    ];
+    let held_out = match held_views {
+        Some((indices, held)) => Some(score_views(cfg, &baseline, &svd_maps, &held, indices)?),
+        None => None,
+    };
     Ok(Image3dOutcome {
         maps: to_affine(&svd_maps),
         svd_maps,
         baseline: to_affine(&baseline),
+        baseline_svd: baseline.clone(),
         returned,
         start_loss,
         baseline_loss,
         loss,
         iterations: state.get_iter(),
+        ink_ratio: ink,
+        held_out,
         hull_voxels: hull.kept.len(),
         hull_seconds,
         fit_seconds,
@@ -201,6 +285,12 @@ pub struct Summary3d {
     pub returned: &'static str,
     /// Losses (mean over views, final σ, fixed streams).
     pub loss: Losses3d,
+    /// Ink of the renders over the fitted views' ink: baseline, then fit.
+    pub ink_ratio: [f64; 2],
+    /// Image scores on the held-out views, when some were held out.
+    pub held_out: Option<HeldOut3d>,
+    /// Image scores on views drawn apart from the fitted ones (`--score-views`), if any.
+    pub other_views: Option<HeldOut3d>,
     /// Voxels of the visual hull.
     pub hull_voxels: usize,
     /// Seconds: hull and EM, then the strategy.
@@ -228,13 +318,15 @@ pub fn attractor(maps: &[Affine3], probs: Option<&[f64]>, seed: u64) -> Result<V
 }
 
 /// Writes the outputs of `outcome` into `dir` (see the module docs) and returns the
-/// summary; `truth` (maps and their probabilities) adds the scores.
+/// summary; `truth` (maps and their probabilities) adds the scores, `other` (views the
+/// fit never saw, e.g. drawn at another elevation) the image scores on them.
 pub fn write_outputs(
     dir: &Path,
     cfg: &Image3dConfig,
     views: &Views,
     outcome: &Image3dOutcome,
     truth: Option<(&[Affine3], Option<&[f64]>)>,
+    other: Option<&Views>,
 ) -> Result<Summary3d> {
     Affine3::to_code(Some("invert3d"), &outcome.maps)?.save(dir.join("code.json"))?;
     Affine3::to_code(Some("visual hull + EM"), &outcome.baseline)?
@@ -285,6 +377,18 @@ pub fn write_outputs(
             start: outcome.start_loss,
             baseline: outcome.baseline_loss,
             fit: outcome.loss,
+        },
+        ink_ratio: outcome.ink_ratio,
+        held_out: outcome.held_out.clone(),
+        other_views: match other {
+            Some(v) => Some(score_views(
+                cfg,
+                &outcome.baseline_svd,
+                &outcome.svd_maps,
+                v,
+                (0..v.len()).collect(),
+            )?),
+            None => None,
         },
         hull_voxels: outcome.hull_voxels,
         seconds: [outcome.hull_seconds, outcome.fit_seconds],

@@ -153,6 +153,45 @@ impl Views {
         let (w, h) = self.size();
         &self.planes[i * w * h..(i + 1) * w * h]
     }
+
+    /// The views at `indices` (in that order); refuses an empty list and an index past
+    /// the last view.
+    pub fn subset(&self, indices: &[usize]) -> Result<Views> {
+        if let Some(&i) = indices.iter().find(|&&i| i >= self.len()) {
+            return Err(Error::InvalidInput(format!(
+                "view {i} asked for, but there are {} views",
+                self.len()
+            )));
+        }
+        let mut planes = Vec::with_capacity(indices.len() * self.plane(0).len());
+        for &i in indices {
+            planes.extend_from_slice(self.plane(i));
+        }
+        let mut out = Views::new(
+            indices.iter().map(|&i| self.cameras[i].clone()).collect(),
+            planes,
+        )?;
+        if self.files.len() == self.len() {
+            out.files = indices.iter().map(|&i| self.files[i].clone()).collect();
+        }
+        Ok(out)
+    }
+
+    /// `k` views spread evenly around the list (indices `⌊(j + ½)·n/k⌋`, `j < k`), held
+    /// out of a fit to score it on views it did not see, and the others; refuses `k` that
+    /// leaves fewer than one view to fit.
+    pub fn hold_out(&self, k: usize) -> Result<(Vec<usize>, Vec<usize>)> {
+        let n = self.len();
+        if k >= n {
+            return Err(Error::param(
+                "hold_out",
+                format!("{k} held-out views leave none of the {n} views to fit"),
+            ));
+        }
+        let held: Vec<usize> = (0..k).map(|j| ((2 * j + 1) * n) / (2 * k)).collect();
+        let fit = (0..n).filter(|i| !held.contains(i)).collect();
+        Ok((fit, held))
+    }
 }
 
 /// The common size of `cameras`; refuses none and different sizes, naming the view.
