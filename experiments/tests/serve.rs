@@ -476,13 +476,12 @@ fn a_tile_of_a_stale_generation_stops_midway() {
     // A render that ran to its end would have been answered 200 (drawn is drawn).
     eprintln!("the stale tile was answered 409 after {took:?}");
     drop(newer);
-    let (stats, _) = wait_for(&server, Duration::from_secs(20), |s| {
-        s.cancelled_drawing == 1
+    // The newer tile is drawn or cancelled (its client left), whichever comes first on a
+    // busy machine; the stale one is neither.
+    let (stats, _) = wait_for(&server, Duration::from_secs(30), |s| {
+        s.drawn + s.cancelled_drawing == 1
     });
-    assert_eq!(
-        (stats.stale, stats.cancelled_drawing, stats.drawn),
-        (1, 1, 0)
-    );
+    assert_eq!((stats.stale, stats.drawn + stats.cancelled_drawing), (1, 1));
     server.stop();
 }
 

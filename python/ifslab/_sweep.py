@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Dict, Iterable, List, Optional, Sequence, Union
@@ -16,6 +17,51 @@ from ._progress import reporting
 PathLike = Union[str, "os.PathLike[str]"]
 
 
+Only = Union[Dict[str, Any], Iterable[Union[str, Sequence[Any]]], None]
+
+
+def _only_pairs(only: Only) -> List[tuple]:
+    """``only`` as the (axis, label) pairs of ``--only AXIS=LABEL``: a dict of an axis to a
+    label or a list of labels, or a list of ``"AXIS=LABEL"`` strings or (axis, label)
+    pairs. Labels are compared as text (``seed=0``)."""
+    if only is None:
+        return []
+    pairs: List[tuple] = []
+    if isinstance(only, dict):
+        for axis, labels in only.items():
+            if isinstance(labels, (list, tuple, set)):
+                pairs += [(str(axis), str(l)) for l in labels]
+            else:
+                pairs.append((str(axis), str(labels)))
+        return pairs
+    if isinstance(only, str):
+        only = [only]
+    for item in only:
+        if isinstance(item, str):
+            if "=" not in item:
+                raise ValueError(f"`{item}` is not AXIS=LABEL")
+            axis, label = item.split("=", 1)
+            pairs.append((axis.strip(), label.strip()))
+        else:
+            axis, label = item
+            pairs.append((str(axis), str(label)))
+    return pairs
+
+
+def _ifslab_binary(exe: Optional[PathLike]) -> str:
+    """The ``ifslab`` binary Slurm's tasks run: ``exe``, else $IFSLAB_CLI, else the one on
+    PATH."""
+    if exe is not None:
+        return os.fspath(exe)
+    found = os.environ.get("IFSLAB_CLI") or shutil.which("ifslab")
+    if not found:
+        raise _ifslab.IfslabError(
+            "a Slurm sweep runs the ifslab binary on each task: give exe=, set IFSLAB_CLI or "
+            "put ifslab on PATH (cargo build --release -p ifslab-experiments)"
+        )
+    return found
+
+
 def sweep(
     sweep_file: PathLike,
     output: PathLike,
@@ -23,6 +69,13 @@ def sweep(
     *,
     threads: Optional[int] = None,
     shard: Optional[str] = None,
+    only: Only = None,
+    without_lpips: bool = False,
+    dry_run: bool = False,
+    adopt: Optional[PathLike] = None,
+    slurm: bool = False,
+    submit: bool = False,
+    exe: Optional[PathLike] = None,
     progress: Any = None,
 ) -> Dict[str, Any]:
     """Runs the sweep file ``sweep_file`` into the folder ``output`` on this machine, as
@@ -35,10 +88,44 @@ def sweep(
 
     Returns ``{"sweep", "dir", "jobs", "threads", "runs": [{"index", "id", "name",
     "status", …}]}``, status ``finished`` (now, with its ``headline``), ``skipped``
-    (finished before), ``busy`` (another process holds it)."""
+    (finished before), ``busy`` (another process holds it).
+
+    The command's other flags:
+
+    - ``only`` (``--only AXIS=LABEL``, repeated): only the runs with these labels —
+      ``{"seed": [0, 1], "group": "em"}``, or ``["seed=0", "seed=1"]``; labels of one axis
+      are alternatives, different axes must all match. Applies to every mode below.
+    - ``without_lpips`` (``--without-lpips``): run even where the LPIPS weights are missing.
+    - ``dry_run`` (``--dry-run``): run nothing; returns ``{"sweep", "dir", "shard",
+      "description", "runs": [{"index", "id", "name", "in_shard", "state"}]}``, state
+      ``finished``, ``partial`` (interrupted or failed) or ``not_started`` in ``output``.
+    - ``adopt`` (``--adopt RUNS_DIR``): run nothing; take the finished run folders of
+      ``RUNS_DIR`` (and the runs packed beside it) that are runs of the sweep. Returns
+      ``{"sweep", "dir", "adopted": [{"index", "id", "from"}], "already", "unmatched":
+      [{"folder", "why"}]}``.
+    - ``slurm`` (``--slurm [--submit]``): run nothing; write the job-array script into
+      ``output/slurm/`` (tasks running ``exe``, else $IFSLAB_CLI, else ``ifslab`` on PATH)
+      and submit it with sbatch when ``submit``. Returns ``{"sweep", "dir", "script",
+      "runs", "array_tasks", "job"}``.
+    """
+    pairs = _only_pairs(only)
+    modes = [m for m, on in (("dry_run", dry_run), ("adopt", adopt is not None), ("slurm", slurm)) if on]
+    if len(modes) > 1:
+        raise ValueError(f"{' and '.join(modes)} do not go together (each runs nothing else)")
+    if submit and not slurm:
+        raise ValueError("submit= needs slurm=True")
+    sweep_file, output = os.fspath(sweep_file), os.fspath(output)
+    if dry_run:
+        return json.loads(_ifslab.sweep_dry_run(sweep_file, output, shard, pairs))
+    if adopt is not None:
+        return json.loads(_ifslab.sweep_adopt(sweep_file, output, os.fspath(adopt), pairs))
+    if slurm:
+        return json.loads(
+            _ifslab.sweep_slurm(sweep_file, output, _ifslab_binary(exe), pairs, without_lpips, submit)
+        )
     with reporting(progress) as callback:
         text = _ifslab.sweep(
-            os.fspath(sweep_file), os.fspath(output), jobs, threads, shard, callback
+            sweep_file, output, jobs, threads, shard, callback, pairs, without_lpips
         )
     return json.loads(text)
 

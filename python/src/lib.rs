@@ -45,6 +45,9 @@ fn _ifslab(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(splat::splat_defaults, m)?)?;
     m.add_function(wrap_pyfunction!(sweep::suite_score, m)?)?;
     m.add_function(wrap_pyfunction!(sweep::sweep, m)?)?;
+    m.add_function(wrap_pyfunction!(sweep::sweep_dry_run, m)?)?;
+    m.add_function(wrap_pyfunction!(sweep::sweep_adopt, m)?)?;
+    m.add_function(wrap_pyfunction!(sweep::sweep_slurm, m)?)?;
     m.add_function(wrap_pyfunction!(sweep::collect_sweep, m)?)?;
     m.add_function(wrap_pyfunction!(save_png, m)?)?;
     m.add_function(wrap_pyfunction!(load_image, m)?)?;

@@ -11,9 +11,11 @@ use ifslab::loss::lpips::Lpips;
 use ifslab_experiments::progress::{Progress, Silent};
 use ifslab_experiments::suite;
 use ifslab_experiments::sweep::collect::{Aggregate, Collected, collect};
-use ifslab_experiments::sweep::local::RunStatus;
+use ifslab_experiments::sweep::local::{self, RunStatus};
 use ifslab_experiments::sweep::report::{ReportOptions, write_report};
-use ifslab_experiments::sweep::{Plan, PlannedRun, RunnerOptions, Shard, run_sweep};
+use ifslab_experiments::sweep::{
+    Plan, PlannedRun, RunnerOptions, Shard, check_lpips_weights, run_sweep, slurm,
+};
 use pyo3::exceptions::PyKeyboardInterrupt;
 use pyo3::prelude::*;
 use serde_json::{Value, json};
@@ -54,13 +56,148 @@ pub fn suite_score(
     serde_json::to_string(&scores.py()?).py()
 }
 
-/// Runs the sweep file `sweep_file` into `out` on this machine, as `ifslab sweep FILE -o
-/// OUT --jobs N [--threads T] [--shard I/N]` does: finished runs are kept, interrupted ones
-/// resumed. The GIL is released; `progress` hears the sweep's overall progress (runs done).
-/// Ctrl-C stops the runs under way at their checkpoints and raises `KeyboardInterrupt`
-/// with the library's words. Returns JSON text: every run of the shard with its status.
+/// The sweep file's plan, kept to the runs `only` names (`--only AXIS=LABEL`, repeated).
+fn plan_of(sweep_file: &Path, only: &[(String, String)]) -> PyResult<Plan> {
+    let mut plan = Plan::load(sweep_file).py()?;
+    plan.retain(only).py()?;
+    Ok(plan)
+}
+
+fn shard_of(shard: Option<&str>) -> PyResult<Shard> {
+    match shard {
+        Some(s) => s.parse().py(),
+        None => Ok(Shard::ALL),
+    }
+}
+
+/// What `ifslab sweep FILE -o OUT --dry-run [--shard I/N] [--only …]` prints, as JSON text:
+/// the plan's description, and each run of the plan with whether it is in the shard and
+/// its state in `out` (`finished`, `partial`: interrupted or failed, `not_started`).
 #[pyfunction]
-#[pyo3(signature = (sweep_file, out, jobs=1, threads=None, shard=None, progress=None))]
+#[pyo3(signature = (sweep_file, out, shard=None, only=Vec::new()))]
+pub fn sweep_dry_run(
+    sweep_file: PathBuf,
+    out: PathBuf,
+    shard: Option<&str>,
+    only: Vec<(String, String)>,
+) -> PyResult<String> {
+    let plan = plan_of(&sweep_file, &only)?;
+    let shard = shard_of(shard)?;
+    let finished = local::FinishedRuns::of(&out).py()?;
+    let runs: Vec<Value> = plan
+        .runs
+        .iter()
+        .enumerate()
+        .map(|(k, r)| {
+            let state = if finished.contains(&r.id) {
+                "finished"
+            } else if local::partial_dir(&out, &r.id).is_dir() {
+                "partial"
+            } else {
+                "not_started"
+            };
+            json!({
+                "index": r.index, "id": r.id, "name": r.name,
+                "in_shard": shard.contains(k), "state": state,
+            })
+        })
+        .collect();
+    serde_json::to_string(&json!({
+        "sweep": plan.name,
+        "dir": out,
+        "shard": shard.to_string(),
+        "description": plan.describe(),
+        "runs": runs,
+    }))
+    .py()
+}
+
+/// `ifslab sweep FILE -o OUT --adopt FROM [--only …]`: takes the finished run folders of
+/// `from` (and the runs packed beside it) whose configs are runs of the sweep into `out`.
+/// JSON text: the runs adopted (index, id, folder), how many were there already, the
+/// folders left out and why.
+#[pyfunction]
+#[pyo3(signature = (sweep_file, out, from, only=Vec::new()))]
+pub fn sweep_adopt(
+    py: Python<'_>,
+    sweep_file: PathBuf,
+    out: PathBuf,
+    from: PathBuf,
+    only: Vec<(String, String)>,
+) -> PyResult<String> {
+    let plan = plan_of(&sweep_file, &only)?;
+    let r = py.detach(|| local::adopt(&plan, &out, &from)).py()?;
+    let id_of = |i: usize| {
+        plan.runs
+            .iter()
+            .find(|r| r.index == i)
+            .map(|r| r.id.clone())
+    };
+    serde_json::to_string(&json!({
+        "sweep": plan.name,
+        "dir": out,
+        "adopted": r.adopted.iter().map(|(i, d)| json!({"index": i, "id": id_of(*i), "from": d})).collect::<Vec<_>>(),
+        "already": r.already,
+        "unmatched": r.unmatched.iter().map(|(d, why)| json!({"folder": d, "why": why})).collect::<Vec<_>>(),
+    }))
+    .py()
+}
+
+/// `ifslab sweep FILE -o OUT --slurm [--submit] [--without-lpips] [--only …]`: writes the
+/// Slurm job-array script into `out/slurm/`, its tasks running `exe` (the `ifslab`
+/// binary), and submits it with `sbatch` when `submit`. JSON text: the script, the runs,
+/// the array's tasks, and the job id when submitted.
+#[pyfunction]
+#[pyo3(signature = (sweep_file, out, exe, only=Vec::new(), without_lpips=false, submit=false))]
+pub fn sweep_slurm(
+    sweep_file: PathBuf,
+    out: PathBuf,
+    exe: PathBuf,
+    only: Vec<(String, String)>,
+    without_lpips: bool,
+    submit: bool,
+) -> PyResult<String> {
+    let plan = plan_of(&sweep_file, &only)?;
+    if !exe.is_file() {
+        return Err(IfslabError::new_err(format!(
+            "the ifslab binary the Slurm tasks would run is not there: {}",
+            exe.display()
+        )));
+    }
+    if !without_lpips {
+        // As the command line: what the array tasks would run, the unfinished runs.
+        let finished = local::FinishedRuns::of(&out).py()?;
+        check_lpips_weights(plan.runs.iter().filter(|r| !finished.contains(&r.id))).py()?;
+    }
+    let extra: Vec<String> = match without_lpips {
+        true => vec!["--without-lpips".into()],
+        false => Vec::new(),
+    };
+    let script = slurm::write_script(&plan, &out, &exe, &extra).py()?;
+    let job = match submit {
+        true => Some(slurm::submit(&script).py()?),
+        false => None,
+    };
+    serde_json::to_string(&json!({
+        "sweep": plan.name,
+        "dir": out,
+        "script": script,
+        "runs": plan.runs.len(),
+        "array_tasks": slurm::shard_count(&plan),
+        "job": job,
+    }))
+    .py()
+}
+
+/// Runs the sweep file `sweep_file` into `out` on this machine, as `ifslab sweep FILE -o
+/// OUT --jobs N [--threads T] [--shard I/N] [--only AXIS=LABEL…] [--without-lpips]` does:
+/// finished runs are kept, interrupted ones resumed. The GIL is released; `progress` hears
+/// the sweep's overall progress (runs done). Ctrl-C stops the runs under way at their
+/// checkpoints and raises `KeyboardInterrupt` with the library's words. Returns JSON text:
+/// every run of the shard with its status.
+#[pyfunction]
+#[pyo3(signature = (sweep_file, out, jobs=1, threads=None, shard=None, progress=None, only=Vec::new(), without_lpips=false))]
+#[allow(clippy::too_many_arguments)]
 pub fn sweep(
     py: Python<'_>,
     sweep_file: PathBuf,
@@ -69,13 +206,14 @@ pub fn sweep(
     threads: Option<usize>,
     shard: Option<&str>,
     progress: Option<Py<PyAny>>,
+    only: Vec<(String, String)>,
+    without_lpips: bool,
 ) -> PyResult<String> {
-    let plan = Plan::load(&sweep_file).py()?;
-    let shard: Shard = match shard {
-        Some(s) => s.parse().py()?,
-        None => Shard::ALL,
-    };
-    let opts = RunnerOptions::new(jobs, threads, shard).py()?;
+    let plan = plan_of(&sweep_file, &only)?;
+    let shard = shard_of(shard)?;
+    let opts = RunnerOptions::new(jobs, threads, shard)
+        .py()?
+        .without_lpips(without_lpips);
     if !ifslab::interrupt::clear() {
         return Err(IfslabError::new_err(
             "another run in this Python process is stopping at its checkpoint after an \

@@ -206,3 +206,95 @@ def test_ctrl_c_stops_a_sweep_and_the_next_call_does_the_rest(tmp_path: Path) ->
     again = ifslab.sweep(tmp_path / "sweep.toml", out)
     assert [r["status"] for r in again["runs"]] == ["skipped", "finished"]
     assert "1500 iterations" in again["runs"][1]["headline"]
+
+
+SWEEP3 = """\
+name = "py_flags"
+base = "base.toml"
+[[axis]]
+key = "seed"
+values = [0, 1, 2]
+"""
+
+
+def _three(tmp_path: Path) -> Path:
+    (tmp_path / "base.toml").write_text(BASE)
+    (tmp_path / "sweep.toml").write_text(SWEEP3)
+    return tmp_path / "sweep.toml"
+
+
+def test_only_and_dry_run_are_the_clis(cli, tmp_path: Path) -> None:
+    file = _three(tmp_path)
+    out = tmp_path / "out"
+    plan = ifslab.sweep(file, out, dry_run=True)
+    assert [r["state"] for r in plan["runs"]] == ["not_started"] * 3
+    assert all(r["in_shard"] for r in plan["runs"])
+    printed = cli(["sweep", file, "-o", out, "--dry-run"]).stdout
+    assert printed.startswith(plan["description"]) and plan["description"]
+    # --only: one run, run; the dry run then says so, for every way of naming it.
+    done = ifslab.sweep(file, out, only={"seed": 1}, without_lpips=True)
+    assert [(r["index"], r["status"]) for r in done["runs"]] == [(1, "finished")]
+    for only in ({"seed": [1]}, ["seed=1"], [("seed", 1)], "seed=1"):
+        one = ifslab.sweep(file, out, dry_run=True, only=only)
+        assert [(r["index"], r["state"]) for r in one["runs"]] == [(1, "finished")], only
+    printed = cli(["sweep", file, "-o", out, "--dry-run", "--only", "seed=1"]).stdout
+    assert printed.startswith(one["description"])
+    assert "1 finished" in printed
+    everything = ifslab.sweep(file, out, dry_run=True, shard="0/2")
+    assert [r["state"] for r in everything["runs"]] == ["not_started", "finished", "not_started"]
+    assert [r["in_shard"] for r in everything["runs"]] == [True, False, True]
+    # Refusals in the library's words, and flags that do not go together.
+    bad = cli(["sweep", file, "-o", out, "--dry-run", "--only", "colour=red"], check=False)
+    assert bad.returncode != 0
+    with pytest.raises(ifslab.IfslabError) as e:
+        ifslab.sweep(file, out, dry_run=True, only={"colour": "red"})
+    assert cli_error_lines(bad.stderr)[0] in str(e.value)
+    with pytest.raises(ValueError, match="AXIS=LABEL"):
+        ifslab.sweep(file, out, dry_run=True, only=["seed"])
+    with pytest.raises(ValueError, match="do not go together"):
+        ifslab.sweep(file, out, dry_run=True, slurm=True)
+    with pytest.raises(ValueError, match="slurm=True"):
+        ifslab.sweep(file, out, submit=True)
+
+
+def test_adopt_takes_finished_runs_as_the_cli_does(cli, tmp_path: Path) -> None:
+    file = _three(tmp_path)
+    first = tmp_path / "first"
+    ifslab.sweep(file, first, only={"seed": [0, 2]})
+    mine = ifslab.sweep(file, tmp_path / "py", adopt=first / "runs")
+    cli(["sweep", file, "-o", tmp_path / "cli", "--adopt", first / "runs"])
+    assert sorted(r["index"] for r in mine["adopted"]) == [0, 2]
+    assert mine["already"] == 0
+    # Only the sweep's own lock folder is no run.
+    assert [Path(u["folder"]).name for u in mine["unmatched"]] == [".locks"]
+    for name in ("py", "cli"):
+        c = ifslab.collect(tmp_path / name)
+        assert [r["status"] for r in c.runs] == ["finished", "missing", "finished"], name
+    again = ifslab.sweep(file, tmp_path / "py", adopt=first / "runs")
+    assert again["adopted"] == [] and again["already"] == 2
+    # Adopted runs are not run again.
+    rest = ifslab.sweep(file, tmp_path / "py")
+    assert [r["status"] for r in rest["runs"]] == ["skipped", "finished", "skipped"]
+
+
+def test_slurm_writes_the_clis_script(cli, tmp_path: Path) -> None:
+    from conftest import _cli_path
+
+    file = _three(tmp_path)
+    exe = _cli_path().resolve()
+    mine = ifslab.sweep(file, tmp_path / "py", slurm=True, exe=exe, only={"seed": [0, 1]}, without_lpips=True)
+    printed = cli(
+        ["sweep", file, "-o", tmp_path / "cli", "--slurm", "--only", "seed=0", "--only", "seed=1", "--without-lpips"]
+    ).stdout
+    script = Path(mine["script"])
+    assert script.is_file() and script.parent == (tmp_path / "py" / "slurm").resolve()
+    assert mine["runs"] == 2 and f"{mine['runs']} runs in {mine['array_tasks']} array tasks" in printed
+    assert mine["job"] is None
+    theirs = (tmp_path / "cli" / "slurm" / "sweep.sbatch").read_text()
+    text = script.read_text()
+    assert "--without-lpips" in text
+    assert text.replace(str((tmp_path / "py").resolve()), "OUT") == theirs.replace(
+        str((tmp_path / "cli").resolve()), "OUT"
+    )
+    with pytest.raises(ifslab.IfslabError, match="not there"):
+        ifslab.sweep(file, tmp_path / "x", slurm=True, exe=tmp_path / "no-such-ifslab")
