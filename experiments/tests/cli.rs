@@ -238,14 +238,13 @@ fn signalled_runs_resume(
             .unwrap();
         // Signalled once the optimisation is under way (a fit at several widths σ runs
         // them one after another, each in a folder of the run: the first is under way).
+        // (`invert` keeps the best of several whole runs, likewise in `run-0`, `run-1`, …).
         let leg = |name: &str| {
-            let top = tmp.path().join(dir).join(name);
-            let first = tmp.path().join(dir).join("sigma-0").join(name);
-            if tmp.path().join(dir).join("sigma-0").is_dir() {
-                first
-            } else {
-                top
-            }
+            ["sigma-0", "run-0"]
+                .iter()
+                .map(|first| tmp.path().join(dir).join(first))
+                .find(|first| first.is_dir())
+                .map_or_else(|| tmp.path().join(dir).join(name), |first| first.join(name))
         };
         let log = tmp.path().join(dir).join("log.csv");
         let t0 = Instant::now();
@@ -309,6 +308,8 @@ fn a_signalled_inversion_checkpoints_and_resumes_to_the_uninterrupted_result() {
         "40",
         "--checkpoint-every",
         "0",
+        "--best-of",
+        "2",
     ];
     signalled_runs_resume(
         &cmd,
@@ -449,15 +450,40 @@ fn quick_inversion_writes_every_output_and_resumes() {
         "log.csv",
         "config.toml",
         "summary.json",
-        "checkpoint.json",
+        "start.json",
+        "target.npy",
+        "run-0/checkpoint.json",
+        "run-2/summary.json",
     ] {
         assert!(out.join(f).is_file(), "{f} missing");
     }
     ifslab::model::IfsCode::load(out.join("code.json")).unwrap();
+    // The best of three whole runs at seeds 0, 1, 2: the kept one's SSIM is the highest,
+    // its code and summary are the run's.
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let legs = summary["legs"].as_array().unwrap();
+    assert_eq!(legs.len(), 3, "{summary}");
+    let seeds: Vec<u64> = legs.iter().map(|l| l["seed"].as_u64().unwrap()).collect();
+    assert_eq!(seeds, [0, 1, 2]);
+    let kept: Vec<&serde_json::Value> = legs.iter().filter(|l| l["chosen"] == true).collect();
+    assert_eq!(kept.len(), 1, "{summary}");
+    let best = legs
+        .iter()
+        .map(|l| l["ssim"].as_f64().unwrap())
+        .fold(f64::MIN, f64::max);
+    assert_eq!(kept[0]["ssim"].as_f64().unwrap(), best);
+    assert_eq!(summary["ssim"], kept[0]["ssim"]);
+    let folder = out.join(kept[0]["folder"].as_str().unwrap());
+    assert_eq!(
+        std::fs::read(out.join("code.json")).unwrap(),
+        std::fs::read(folder.join("code.json")).unwrap()
+    );
     // The defaults are ifslab's recipe, written out; `--paper` is the paper's.
     let cfg = std::fs::read_to_string(out.join("config.toml")).unwrap();
     for want in [
         "paper = false",
+        "best_of = 3",
         "init = \"collage\"",
         "em_reflections = true",
         "sigma_final = 0.4",
@@ -484,9 +510,13 @@ fn quick_inversion_writes_every_output_and_resumes() {
     assert!(
         !cfg.contains("sigma_final")
             && !cfg.contains("em_reflections")
-            && !cfg.contains("collage_refine"),
+            && !cfg.contains("collage_refine")
+            && !cfg.contains("best_of"),
         "{cfg}"
     );
+    // One run, in the run's folder.
+    assert!(Path::new(&paper).join("checkpoint.json").is_file());
+    assert!(!Path::new(&paper).join("run-0").exists());
     // `--lpips` sets the term's weight under either recipe.
     let weighted = tmp.path().join("lpips").to_string_lossy().into_owned();
     let mut weighted_args = args.to_vec();
@@ -583,7 +613,8 @@ fn resume_after_a_kill_matches_the_uninterrupted_run_from_any_directory() {
             .collect::<Vec<_>>(),
     );
 
-    // The same run, killed (SIGKILL) once a checkpoint exists.
+    // The same run, killed (SIGKILL) once a checkpoint exists (in its first whole run: the
+    // default keeps the best of three; the other two start after the picture is gone).
     let mut child = Command::new(bin)
         .current_dir(&work)
         .args(invert("out/run"))
@@ -591,7 +622,7 @@ fn resume_after_a_kill_matches_the_uninterrupted_run_from_any_directory() {
         .stderr(std::process::Stdio::null())
         .spawn()
         .unwrap();
-    let ckpt = work.join("out/run/checkpoint.json");
+    let ckpt = work.join("out/run/run-0/checkpoint.json");
     let t0 = std::time::Instant::now();
     while !ckpt.exists() && t0.elapsed().as_secs() < 120 {
         std::thread::sleep(std::time::Duration::from_millis(2));
@@ -724,7 +755,7 @@ fn a_registered_map_family_runs_from_a_config() {
             "not a similitude: {m:?}"
         );
     }
-    let ckpt = std::fs::read_to_string(out.join("checkpoint.json")).unwrap();
+    let ckpt = std::fs::read_to_string(out.join("run-0/checkpoint.json")).unwrap();
     let v: serde_json::Value = serde_json::from_str(&ckpt).unwrap();
     assert_eq!(
         v["state"]["param"].as_array().map(Vec::len),

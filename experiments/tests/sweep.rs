@@ -20,6 +20,7 @@ use ifslab_experiments::sweep::{
 /// A base config whose runs take seconds: a 32² target, few iterations.
 const BASE: &str = r#"
 iterations = 12
+best_of = 1
 checkpoint_every = 3
 [target]
 code = "sierpinski"

@@ -49,7 +49,8 @@ def test_ctrl_c_checkpoints_and_the_run_resumes_bit_identically(tmp_path):
     assert "KeyboardInterrupt: interrupted after iteration" in done.stdout
     assert "checkpoint is saved" in done.stdout
     assert "second run finished: 60" in done.stdout
-    assert (run_dir / "checkpoint.json").is_file()
+    # The default recipe keeps the best of three whole runs, each in a folder of the run.
+    assert (run_dir / "run-0" / "checkpoint.json").is_file()
     assert not (run_dir / "summary.json").is_file()
 
     resumed = python("import sys, ifslab; print(ifslab.invert(resume=sys.argv[1]).summary['iterations'])", run_dir)

@@ -49,6 +49,7 @@ fn base_config(size: usize, iterations: u64, strategy: StrategyConfig) -> Invers
         paper: true,
         seed: 1,
         iterations,
+        best_of: 1,
         checkpoint_every: 0,
         output: None,
         target: TargetConfig {

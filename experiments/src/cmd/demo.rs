@@ -24,8 +24,8 @@ pub struct Args {
 }
 
 /// The demo's configuration: `ifslab invert TARGET --maps N` at every default (ifslab's
-/// recipe: the collage start, the cold hybrid, σ 1 → 0.4, 1000 iterations of 1000 × 110 points
-/// at 128²), N the maps of the built-in code.
+/// recipe: the collage start, the cold hybrid, σ 1 → 0.4, the best of three runs of 400
+/// iterations of 1000 × 110 points at 128²), N the maps of the built-in code.
 pub fn demo_config(a: &Args) -> anyhow::Result<InversionConfig> {
     let code = ifslab::model::library::builtin(&a.target)?;
     if code.dim() != 2 {

@@ -219,13 +219,7 @@ impl RunConfig {
                 let s = inversion::run_and_report(cfg, dir, resume, progress)?;
                 Ok(RunReport {
                     problem: self.problem().into(),
-                    headline: format!(
-                        "{} iterations of {} in {:.1} s, {}",
-                        s.iterations,
-                        s.strategy,
-                        s.seconds,
-                        s.scores()
-                    ),
+                    headline: format!("{} in {:.1} s, {}", s.work(), s.seconds, s.scores()),
                     summary: serde_json::to_value(&s)?,
                 })
             }

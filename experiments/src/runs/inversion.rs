@@ -2,6 +2,7 @@
 //! recovered code, renders, a zoom strip, the loss curve, a summary.
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::Context;
@@ -11,9 +12,11 @@ use ifslab::metrics::{EVAL_BORDER_FRACTION, ImageMetrics, border_crop_rect, pape
 use ifslab::model::{Affine2, IfsCode, Window};
 use ifslab::render::image_io::{BitDepth, save_grey_png};
 use ifslab::render::{RenderConfig, View, Zoom, render};
+use ifslab_strategies::driver::plan::{CHECKPOINT_FILE, START_FILE};
 use ifslab_strategies::problems::image::{
-    FRAMED_TARGET_FILE, InversionConfig, InversionOutcome, TARGET_READING_FILE, ensure_new_run_dir,
-    load_framed_picture_with, load_framed_target, load_target, run_inversion, save_framed_target,
+    FRAMED_TARGET_FILE, InversionConfig, InversionOutcome, TARGET_READING_FILE, TargetReading,
+    ensure_new_run_dir, load_framed_picture_with, load_framed_target, load_target, run_inversion,
+    save_framed_target,
 };
 use plotters::prelude::*;
 use serde::Serialize;
@@ -21,6 +24,7 @@ use serde::Serialize;
 use crate::codes::resolve_code;
 use crate::plot::{Series, ensure_font, line_chart};
 use crate::progress::{Progress, ProgressObserver};
+use crate::runs::legs::{LegProgress, leg_resumes, refuse_existing_legs};
 
 /// The resolved config inside a run folder.
 pub const CONFIG_FILE: &str = "config.toml";
@@ -153,7 +157,50 @@ pub struct Summary {
     /// against that code ([`truth_score`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub truth: Option<TruthScore>,
+    /// With several whole runs (`best_of`), every one of them, in the order they ran; the
+    /// one with the highest `ssim` is the run's result (the first of equals), and every
+    /// other number of this summary is its.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub legs: Vec<InvertLegSummary>,
 }
+
+/// One of the whole runs of a run that keeps the best of several (`best_of`).
+#[derive(Clone, Debug, Serialize)]
+pub struct InvertLegSummary {
+    /// Its seed.
+    pub seed: u64,
+    /// Its folder inside the run's (`run-0`, `run-1`, …).
+    pub folder: String,
+    /// Its loss at the last iteration.
+    pub final_loss: f64,
+    /// IoU of its render against the target.
+    pub iou: f64,
+    /// SSIM of its render against the target (what chooses among them).
+    pub ssim: f64,
+    /// IoU against the true code, when given (`target.truth`; reported only, never used to
+    /// choose).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub truth_iou: Option<f64>,
+    /// Whether it is the run's result.
+    pub chosen: bool,
+}
+
+/// The folder of a run's `i`-th whole run where it keeps the best of several (`best_of`).
+pub fn leg_folder(i: usize) -> String {
+    format!("run-{i}")
+}
+
+/// The files of the kept whole run that a best-of run shows where a single run's would be.
+const KEPT_FILES: [&str; 8] = [
+    "code.json",
+    "render.png",
+    "zoom_strip.png",
+    "loss.png",
+    "truth.png",
+    "target.png",
+    LOG_FILE,
+    START_FILE,
+];
 
 /// Side of the full views a recovered code and its truth are compared at.
 pub const TRUTH_SIZE: usize = 256;
@@ -231,16 +278,167 @@ impl Summary {
             self.iou, self.f1, self.psnr, self.ssim
         )
     }
+
+    /// What ran, for a headline: `400 iterations of cold_hybrid`, or with several whole
+    /// runs `the best of 3 runs (run-1 kept) of 400 iterations of cold_hybrid`.
+    pub fn work(&self) -> String {
+        let kept = self.legs.iter().find(|l| l.chosen);
+        match kept {
+            Some(k) if self.legs.len() > 1 => format!(
+                "the best of {} runs ({} kept) of {} iterations of {}",
+                self.legs.len(),
+                k.folder,
+                self.iterations,
+                self.strategy
+            ),
+            _ => format!("{} iterations of {}", self.iterations, self.strategy),
+        }
+    }
 }
 
 /// Runs (or resumes) the inversion of `cfg` into `dir` and writes every output: the
 /// resolved config, the framed target, checkpoints and `log.csv` as it goes, then the code,
 /// renders, zoom strip, loss plot and `summary.json`. Iterations are reported to `progress`.
+///
+/// With several whole runs (`best_of`), each runs in a folder of the run ([`leg_folder`]:
+/// its own resolved config, target, checkpoints, log and outputs, resumed where it stopped),
+/// one after another, and the one whose render agrees best with the target (SSIM) is kept:
+/// its code, renders, log and start are copied where a single run's would be, and
+/// `summary.json` is its summary with every run listed (`legs`).
 pub fn run_and_report(
     cfg: &InversionConfig,
     dir: &Path,
     resume: bool,
     progress: Box<dyn Progress>,
+) -> anyhow::Result<Summary> {
+    // A folder holding one run at its top (written before `best_of`, or with `best_of = 1`)
+    // resumes as that one run.
+    if cfg.best_of > 1 && !(resume && dir.join(CHECKPOINT_FILE).is_file()) {
+        return run_best_of(cfg, dir, resume, progress);
+    }
+    run_one(cfg, dir, resume, progress, None)
+}
+
+/// The whole runs of `cfg` at seeds `seed`, `seed + 1`, … (see [`run_and_report`]).
+fn run_best_of(
+    cfg: &InversionConfig,
+    dir: &Path,
+    resume: bool,
+    progress: Box<dyn Progress>,
+) -> anyhow::Result<Summary> {
+    cfg.validate()?;
+    let _lock = crate::runs::lock::lock_run_dir(dir)?;
+    // The target is prepared once, in the run's folder, and every run fits it (a run
+    // resumed after the picture is gone still has it).
+    let target = if resume {
+        run_target(cfg, dir)?
+    } else {
+        ensure_new_run_dir(dir)?;
+        refuse_existing_legs(dir, &leg_folder(0))?;
+        new_run_dir(cfg, dir, None)?
+    };
+    let reading_file = dir.join(TARGET_READING_FILE);
+    let reading = reading_file
+        .is_file()
+        .then(|| TargetReading::load(&reading_file))
+        .transpose()?;
+    let n = cfg.best_of as usize;
+    let progress: Arc<dyn Progress> = Arc::from(progress);
+    progress.start(cfg.strategy.name(), cfg.iterations * n as u64);
+    let clock = Instant::now();
+    let mut legs: Vec<InvertLegSummary> = Vec::with_capacity(n);
+    let mut best: Option<(usize, Summary)> = None;
+    for i in 0..n {
+        let seed = cfg.seed.wrapping_add(i as u64);
+        let leg_cfg = InversionConfig {
+            best_of: 1,
+            seed,
+            output: None,
+            ..cfg.clone()
+        };
+        let folder = leg_folder(i);
+        let leg_dir = dir.join(&folder);
+        let leg_progress = LegProgress::new(progress.clone(), i, n, cfg.iterations);
+        let s = run_one(
+            &leg_cfg,
+            &leg_dir,
+            leg_resumes(&leg_dir, resume),
+            Box::new(leg_progress),
+            Some((&target, reading.as_ref())),
+        )
+        .with_context(|| format!("the run at seed {seed} ({folder})"))?;
+        legs.push(InvertLegSummary {
+            seed,
+            folder,
+            final_loss: s.final_loss,
+            iou: s.iou,
+            ssim: s.ssim,
+            truth_iou: s.truth.as_ref().map(|t| t.iou),
+            chosen: false,
+        });
+        if best.as_ref().is_none_or(|(_, b)| s.ssim > b.ssim) {
+            best = Some((i, s));
+        }
+    }
+    let (chosen, mut summary) = best.context("`best_of` asks for no run")?;
+    legs[chosen].chosen = true;
+    let kept = dir.join(leg_folder(chosen));
+    for name in KEPT_FILES {
+        let from = kept.join(name);
+        if from.is_file() {
+            ifslab::io::write_atomic(
+                &dir.join(name),
+                &std::fs::read(&from).with_context(|| format!("reading {}", from.display()))?,
+            )?;
+        }
+    }
+    summary.seconds = clock.elapsed().as_secs_f64();
+    summary.legs = legs;
+    ifslab::io::write_atomic(
+        &dir.join("summary.json"),
+        serde_json::to_string_pretty(&summary)?.as_bytes(),
+    )?;
+    Ok(summary)
+}
+
+/// A framed target and how the picture was read (none for a code or suite target).
+type Framed<'a> = (&'a [f32], Option<&'a TargetReading>);
+
+/// Fills a fresh run folder: the resolved config, the framed target (`framed`, else
+/// prepared from the config) and how the picture was read; returns the target.
+fn new_run_dir(
+    cfg: &InversionConfig,
+    dir: &Path,
+    framed: Option<Framed>,
+) -> anyhow::Result<Vec<f32>> {
+    let size = cfg.target.size;
+    let (target, reading) = match (framed, &cfg.target.image) {
+        (Some((t, r)), _) => (t.to_vec(), r.cloned()),
+        (None, Some(path)) => {
+            let f = load_framed_picture_with(path, size, cfg.target.polarity, cfg.target_cells())
+                .with_context(|| format!("preparing the target {}", path.display()))?;
+            (f.values, Some(f.reading))
+        }
+        (None, None) => (prepare_target(cfg)?, None),
+    };
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    if let Some(r) = reading {
+        r.save(&dir.join(TARGET_READING_FILE))?;
+    }
+    let resolved = cfg.with_absolute_paths()?;
+    ifslab::io::write_atomic(&dir.join(CONFIG_FILE), resolved.to_toml().as_bytes())?;
+    save_framed_target(&dir.join(FRAMED_TARGET_FILE), &target, size)?;
+    Ok(target)
+}
+
+/// One whole run of `cfg` into `dir` (see [`run_and_report`]); a fresh one on the target
+/// `framed` where given (the target its best-of run prepared once for all its runs).
+fn run_one(
+    cfg: &InversionConfig,
+    dir: &Path,
+    resume: bool,
+    progress: Box<dyn Progress>,
+    framed: Option<Framed>,
 ) -> anyhow::Result<Summary> {
     let _lock = crate::runs::lock::lock_run_dir(dir)?;
     let size = cfg.target.size;
@@ -248,23 +446,7 @@ pub fn run_and_report(
         run_target(cfg, dir)?
     } else {
         ensure_new_run_dir(dir)?;
-        let (target, reading) = match &cfg.target.image {
-            Some(path) => {
-                let f =
-                    load_framed_picture_with(path, size, cfg.target.polarity, cfg.target_cells())
-                        .with_context(|| format!("preparing the target {}", path.display()))?;
-                (f.values, Some(f.reading))
-            }
-            None => (prepare_target(cfg)?, None),
-        };
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        if let Some(r) = reading {
-            r.save(&dir.join(TARGET_READING_FILE))?;
-        }
-        let resolved = cfg.with_absolute_paths()?;
-        ifslab::io::write_atomic(&dir.join(CONFIG_FILE), resolved.to_toml().as_bytes())?;
-        save_framed_target(&dir.join(FRAMED_TARGET_FILE), &target, size)?;
-        target
+        new_run_dir(cfg, dir, framed)?
     };
     save_square_grey(&dir.join("target.png"), &target, size)?;
     progress.start(cfg.strategy.name(), cfg.iterations);
@@ -313,6 +495,7 @@ pub fn run_and_report(
         selection: outcome.selection.clone(),
         suite,
         truth,
+        legs: Vec::new(),
     };
     ifslab::io::write_atomic(
         &dir.join("summary.json"),
@@ -386,8 +569,15 @@ pub fn redraw_pictures(cfg: &InversionConfig, dir: &Path) -> anyhow::Result<Vec<
         .affine2()
         .with_context(|| format!("{} must be a 2-D code", code_path.display()))?;
     let probs = code.evaluation_probabilities()?;
+    // The seed of the run that found the code (a best-of run keeps one of several runs at
+    // seeds of their own; the code file says which).
+    let seed = code
+        .meta
+        .get("seed")
+        .and_then(|v| v.as_u64())
+        .unwrap_or(cfg.seed);
     let mut written = Vec::new();
-    let final_render = render(&maps, &probs, &eval_config(size, cfg.seed), None)?;
+    let final_render = render(&maps, &probs, &eval_config(size, seed), None)?;
     final_render.save_png(&dir.join("render.png"), BitDepth::Eight, false)?;
     written.push(dir.join("render.png"));
     let target = run_target(cfg, dir)?;
@@ -399,7 +589,7 @@ pub fn redraw_pictures(cfg: &InversionConfig, dir: &Path) -> anyhow::Result<Vec<
         written.push(dir.join("truth.png"));
     }
     if let Some(spec) = &cfg.target.truth {
-        truth_score(spec, &maps, cfg.seed, dir)?;
+        truth_score(spec, &maps, seed, dir)?;
         written.push(dir.join("truth.png"));
     }
     zoom_strip(
@@ -407,7 +597,7 @@ pub fn redraw_pictures(cfg: &InversionConfig, dir: &Path) -> anyhow::Result<Vec<
         &probs,
         &final_render.stats.window,
         &dir.join("zoom_strip.png"),
-        cfg.seed,
+        seed,
     )?;
     written.push(dir.join("zoom_strip.png"));
     let log = dir.join(LOG_FILE);

@@ -19,6 +19,7 @@ pub mod config;
 pub mod flame;
 pub mod inversion;
 pub mod landscape;
+pub mod legs;
 pub mod lock;
 pub mod points;
 pub mod sdf;

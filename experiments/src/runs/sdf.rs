@@ -16,7 +16,6 @@ use ifslab::model::segment::{Pattern, PatternFile, resolve_pattern};
 use ifslab::render::FIT_FILL;
 use ifslab::render::image_io::{BitDepth, save_grey_png};
 use ifslab::render::sdf::{SdfRaster, SdfRenderConfig, SdfView, WordTree};
-use ifslab_strategies::driver::plan::CHECKPOINT_FILE;
 use ifslab_strategies::problems::image::{
     FRAMED_TARGET_FILE, TARGET_READING_FILE, TargetReading, ensure_new_run_dir,
     load_framed_picture, load_framed_target, save_framed_target,
@@ -29,6 +28,7 @@ use serde::Serialize;
 
 use crate::progress::{Progress, ProgressObserver};
 use crate::runs::inversion::{CONFIG_FILE, loss_plot};
+use crate::runs::legs::{LegProgress, leg_resumes, refuse_existing_legs};
 
 /// The fitted pattern inside a run folder.
 pub const FITTED_PATTERN_FILE: &str = "pattern.json";
@@ -132,28 +132,6 @@ struct Timed {
     fresh: u64,
 }
 
-/// Reports a leg's iterations as part of the whole run's: positions offset by the legs
-/// before it, finished with the last leg only.
-struct LegProgress {
-    inner: Arc<dyn Progress>,
-    offset: u64,
-    last: bool,
-}
-
-impl Progress for LegProgress {
-    fn set_position(&self, done: u64) {
-        self.inner.set_position(self.offset + done);
-    }
-    fn message(&self, message: &str) {
-        self.inner.message(message);
-    }
-    fn finish(&self) {
-        if self.last {
-            self.inner.finish();
-        }
-    }
-}
-
 /// The fits of `cfg` at each width of `sigmas`, one after another, each whole in its own
 /// folder `sigma-<i>` of `dir` (so each checkpoints and resumes as a run of its own); the
 /// one whose render agrees best with the target (IoU of the half-inked pixels) is
@@ -177,18 +155,18 @@ fn run_legs(
         let leg_cfg = at_sigma(cfg, sigma);
         let folder = leg_folder(i);
         let leg_dir = dir.join(&folder);
-        // A leg the interrupted run had not checkpointed yet starts afresh.
-        let leg_resume = resume && leg_dir.join(CHECKPOINT_FILE).is_file();
+        let leg_resume = leg_resumes(&leg_dir, resume);
         let done_before = if leg_resume {
             ifslab_strategies::driver::plan::checkpoint_iteration(&leg_dir)?
         } else {
             0
         };
-        let observer = ProgressObserver::new(Box::new(LegProgress {
-            inner: progress.clone(),
-            offset: i as u64 * cfg.iterations,
-            last: i + 1 == sigmas.len(),
-        }));
+        let observer = ProgressObserver::new(Box::new(LegProgress::new(
+            progress.clone(),
+            i,
+            sigmas.len(),
+            cfg.iterations,
+        )));
         let out = run_sdf(
             &leg_cfg,
             ink.to_vec(),
@@ -309,15 +287,7 @@ pub fn run(
     } else {
         ensure_new_run_dir(dir)?;
         // A fit at several widths checkpoints in its legs' folders.
-        if dir.join(leg_folder(0)).join(CHECKPOINT_FILE).exists() {
-            anyhow::bail!(
-                "{} already holds a run ({}/checkpoint.json); continue it with --resume {} or \
-                 choose another output folder",
-                dir.display(),
-                leg_folder(0),
-                dir.display()
-            );
-        }
+        refuse_existing_legs(dir, &leg_folder(0))?;
         let framed = load_framed_picture(&cfg.target, size, cfg.polarity)?;
         let mut t = framed.values;
         stretch_ink(&mut t);

@@ -159,9 +159,14 @@ pub struct InversionConfig {
     /// Seed of everything random in the run.
     #[serde(default)]
     pub seed: u64,
-    /// Optimisation iterations T.
+    /// Optimisation iterations T (of each run, where there are several: `best_of`).
     #[serde(default = "default_iterations")]
     pub iterations: u64,
+    /// Whole runs at seeds `seed`, `seed + 1`, …, each in a folder of the run (`run-0`,
+    /// `run-1`, …), the one whose render agrees best with the target (SSIM) kept; 1: one
+    /// run (the paper's; left out of the resolved table, so a run's id does not change).
+    #[serde(default = "one", skip_serializing_if = "is_one")]
+    pub best_of: u32,
     /// Write a checkpoint every this many iterations (0: never).
     #[serde(default = "default_checkpoint_every")]
     pub checkpoint_every: u64,
@@ -191,14 +196,35 @@ fn default_checkpoint_every() -> u64 {
     100
 }
 
+fn one() -> u32 {
+    1
+}
+
+fn is_one(n: &u32) -> bool {
+    *n == 1
+}
+
+/// ifslab's number of whole runs (`best_of`), at seeds `seed`, `seed + 1`, `seed + 2`, the
+/// one whose render has the highest SSIM against the target kept. On the robustness
+/// suite's tuning split (24 random codes, their true map count) single runs at seeds 0, 1
+/// and 2 scored 0.594, 0.569 and 0.560 (mean IoU against the true codes), the best of the
+/// three by SSIM 0.61; the SSIM picked the seed best for the truth on most codes
+/// (robustness/README.md).
+pub const DEFAULT_BEST_OF: u32 = 3;
+
+/// The most whole runs `best_of` may ask for.
+pub const MAX_BEST_OF: u32 = 64;
+
 fn default_iterations() -> u64 {
     2000
 }
 
-/// ifslab's iterations (`iterations`): on the robustness suite's tuning split, 1000
-/// iterations of 1000 × 110 points scored as 2000 of the paper's 2000 × 250 (the mean
-/// IoU against the true codes within 0.03 either way) in a fifth of the time.
-pub const DEFAULT_ITERATIONS: u64 = 1000;
+/// ifslab's iterations (`iterations`, of each of the `best_of` runs): on the robustness
+/// suite's tuning split, 1000 iterations of 1000 × 110 points scored as 2000 of the paper's
+/// 2000 × 250 (the mean IoU against the true codes within 0.03 either way) in a fifth of the
+/// time, and 400 as 1000 (24 random codes at seeds 0, 1 and 2: 0.592 against 0.594, 0.565
+/// against 0.569, and the third seed's likewise; robustness/README.md).
+pub const DEFAULT_ITERATIONS: u64 = 400;
 /// ifslab's chaos-game trajectories per iteration (`generator.trajectories`).
 pub const DEFAULT_TRAJECTORIES: usize = 1000;
 /// ifslab's steps per trajectory, warm-up included (`generator.length`).
@@ -292,7 +318,8 @@ impl InversionConfig {
     ///
     /// | key | ifslab's (default) | the paper's (`paper = true`) |
     /// |---|---|---|
-    /// | `iterations` | 1000 | 2000 |
+    /// | `iterations` | 400 (each of three runs) | 2000 |
+    /// | `best_of` | 3 (seeds `seed`, `seed + 1`, `seed + 2`; the render closest to the target by SSIM kept) | 1 |
     /// | `generator` | 1000 trajectories × 110 steps | the paper's 2000 × 250 |
     /// | `model.init` | `collage` (copies of the target found in it, or the EM start where it matches better) | `random` (Anderson–Farrell) |
     /// | `model.em_reflections` | true (the EM start's maps may mirror) | false |
@@ -320,6 +347,7 @@ impl InversionConfig {
             .unwrap_or("collage");
         let keys = [
             ("iterations", (DEFAULT_ITERATIONS as i64).into()),
+            ("best_of", (DEFAULT_BEST_OF as i64).into()),
             (
                 "generator.trajectories",
                 (DEFAULT_TRAJECTORIES as i64).into(),
@@ -437,6 +465,12 @@ impl InversionConfig {
                 "config field `iterations`: must be at least 1".into(),
             ));
         }
+        if !(1..=MAX_BEST_OF).contains(&self.best_of) {
+            return Err(Error::InvalidInput(format!(
+                "config field `best_of`: the number of whole runs, 1..={MAX_BEST_OF}, got {}",
+                self.best_of
+            )));
+        }
         let t = &self.target;
         let given = [t.image.is_some(), t.code.is_some(), t.suite.is_some()];
         match given.iter().filter(|&&g| g).count() {
@@ -517,15 +551,22 @@ impl InversionConfig {
             "renderer",
             self.splat_config().validate().map_err(Error::from),
         )?;
-        // The run's work: every iteration splats (and differentiates) every point.
+        // The run's work: every iteration of every whole run splats (and differentiates)
+        // every point.
         let points = (self.generator.trajectories as f64) * (self.generator.length as f64);
+        let runs = if self.best_of > 1 {
+            format!("{} runs of ", self.best_of)
+        } else {
+            String::new()
+        };
         ifslab::budget::check_rate(
-            self.iterations as f64 * points,
+            self.best_of as f64 * self.iterations as f64 * points,
             SPLAT_POINTS_PER_SECOND_PER_THREAD,
             rayon::current_num_threads(),
             "points",
-            &format!("{} iterations of {points} points", self.iterations),
-            "`iterations` (--iters) or `generator.trajectories` (--trajectories)",
+            &format!("{runs}{} iterations of {points} points", self.iterations),
+            "`iterations` (--iters), `best_of` (--best-of) or `generator.trajectories` \
+             (--trajectories)",
         )?;
         // The differentiable render's buffers, before a run allocates any of them.
         ifslab::budget::check_memory(
@@ -655,10 +696,27 @@ mod tests {
         // are, and 0 turns the reading off.
         assert_eq!(cfg.target.cells, Some(DEFAULT_TARGET_CELLS));
         assert!(cfg.target_cells().is_some());
+        // The best of three whole runs of 400 iterations; the paper's recipe runs once,
+        // and its resolved table has no `best_of` (so its runs' ids are what they were).
+        assert_eq!(cfg.best_of, DEFAULT_BEST_OF);
+        let bare = MINIMAL.replace("iterations = 10\n", "");
+        let bare_ours = InversionConfig::from_toml(&bare, Path::new("c.toml")).unwrap();
+        assert_eq!(bare_ours.iterations, DEFAULT_ITERATIONS);
+        let bare_paper =
+            InversionConfig::from_toml(&format!("paper = true\n{bare}"), Path::new("c.toml"))
+                .unwrap();
+        assert_eq!((bare_paper.best_of, bare_paper.iterations), (1, 2000));
+        assert!(cfg.to_toml().contains("best_of = 3"));
         let paper =
             InversionConfig::from_toml(&format!("paper = true\n{MINIMAL}"), Path::new("c.toml"))
                 .unwrap();
         assert_eq!(paper.target.cells, None);
+        assert_eq!(paper.best_of, 1);
+        assert!(!paper.to_toml().contains("best_of"));
+        let once =
+            InversionConfig::from_toml(&format!("best_of = 1\n{MINIMAL}"), Path::new("c.toml"))
+                .unwrap();
+        assert_eq!(once.best_of, 1);
         let off = InversionConfig::from_toml(
             &MINIMAL.replace("[target]\n", "[target]\ncells = 0.0\n"),
             Path::new("c.toml"),
@@ -799,6 +857,9 @@ mod tests {
         assert!(e(&format!("{MINIMAL}[model]\nmapz = 3\n")).contains("mapz"));
         assert!(e(&format!("{MINIMAL}[loss]\nlpips_weight = -2\n")).contains("lpips_weight"));
         assert!(e("iterations = 0\n[target]\ncode = \"fern\"\n").contains("iterations"));
+        for n in [0, MAX_BEST_OF + 1] {
+            assert!(e(&format!("best_of = {n}\n{MINIMAL}")).contains("best_of"));
+        }
         assert!(e("iterations = 5\n[target]\n").contains("[target]"));
         assert!(
             e("iterations = 5\n[target]\ncode = \"fern\"\nimage = \"x.png\"\n")

@@ -230,6 +230,7 @@ mod tests {
             paper: true,
             seed: 1,
             iterations: 1,
+            best_of: 1,
             checkpoint_every: 0,
             output: None,
             target: TargetConfig {
