@@ -46,6 +46,32 @@ fn small_cameras(w: usize, h: usize) -> Vec<Camera> {
 /// so `∂|det M|/∂σ_k = |det M|·(1 − sigmoid σ_k)`), so `∂L/∂θ_k` must equal the central difference
 /// `(L(θ + h·e_k) − L(θ − h·e_k))/2h` on the same trajectories (same stream), for every
 /// entry of θ (two SVD maps: quaternions, singular values, offsets), in f64.
+/// Every component of the reverse pass's gradient `grad` at `theta` against the central
+/// difference of the cost on the same stream `iter`, within 2e-4 of the largest `scale`.
+fn assert_central_differences(
+    problem: &Image3dProblem<f64>,
+    theta: &[f64],
+    iter: u64,
+    grad: &[f64],
+    scale: f64,
+) {
+    let step = 1e-6;
+    for k in 0..theta.len() {
+        let mut plus = theta.to_vec();
+        plus[k] += step;
+        let mut minus = theta.to_vec();
+        minus[k] -= step;
+        let fd = (problem.cost(&plus, iter, 0.0).unwrap()
+            - problem.cost(&minus, iter, 0.0).unwrap())
+            / (2.0 * step);
+        assert!(
+            (fd - grad[k]).abs() <= 2e-4 * scale,
+            "θ[{k}]: reverse pass {} against central difference {fd} (scale {scale})",
+            grad[k]
+        );
+    }
+}
+
 #[test]
 fn the_gradient_matches_central_differences() {
     let (w, h) = (20, 16);
@@ -75,21 +101,7 @@ fn the_gradient_matches_central_differences() {
         scale > 1e-3,
         "the loss should depend on θ (largest |∂L/∂θ| {scale})"
     );
-    let step = 1e-6;
-    for k in 0..theta.len() {
-        let mut plus = theta.clone();
-        plus[k] += step;
-        let mut minus = theta.clone();
-        minus[k] -= step;
-        let fd = (problem.cost(&plus, iter, 0.0).unwrap()
-            - problem.cost(&minus, iter, 0.0).unwrap())
-            / (2.0 * step);
-        assert!(
-            (fd - eval.grad[k]).abs() <= 2e-4 * scale,
-            "θ[{k}]: reverse pass {} against central difference {fd} (scale {scale})",
-            eval.grad[k]
-        );
-    }
+    assert_central_differences(&problem, &theta, iter, &eval.grad, scale);
     // The loss the evaluation reports is the cost on the same stream, and its terms are the
     // views' loss and the volume.
     let cost = problem.cost(&theta, iter, 0.0).unwrap();
@@ -137,21 +149,7 @@ fn the_ink_guard_gradient_matches_central_differences() {
     assert!(ink > 0.05, "two shrunk maps should lack ink: term {ink}");
     assert!((plain.terms[0].1 + 2.0 * ink - eval.loss).abs() <= 1e-12);
     let scale = eval.grad.iter().fold(0.0f64, |m, g| m.max(g.abs()));
-    let step = 1e-6;
-    for k in 0..theta.len() {
-        let mut plus = theta.clone();
-        plus[k] += step;
-        let mut minus = theta.clone();
-        minus[k] -= step;
-        let fd = (problem.cost(&plus, iter, 0.0).unwrap()
-            - problem.cost(&minus, iter, 0.0).unwrap())
-            / (2.0 * step);
-        assert!(
-            (fd - eval.grad[k]).abs() <= 2e-4 * scale,
-            "θ[{k}]: reverse pass {} against central difference {fd} (scale {scale})",
-            eval.grad[k]
-        );
-    }
+    assert_central_differences(&problem, &theta, iter, &eval.grad, scale);
     // The guard pushes ink out: its gradient differs from the plain loss's.
     let moved = eval
         .grad
