@@ -19,6 +19,15 @@ pub const LANES: usize = 4;
 pub trait PointSink {
     /// Takes one point.
     fn put(&mut self, p: [f64; 2]);
+
+    /// Takes the points of one step of [`LANES`] trajectories stepped together, in lane
+    /// order; by default one by one through [`put`](PointSink::put).
+    #[inline(always)]
+    fn put_lanes(&mut self, ps: [[f64; 2]; LANES]) {
+        for p in ps {
+            self.put(p);
+        }
+    }
 }
 
 impl<F: FnMut([f64; 2])> PointSink for F {
@@ -142,10 +151,7 @@ fn run_lanes<M: Map2, S: PointSink>(
         let common = ns.iter().copied().min().unwrap_or(0);
         if let [t0, t1, t2, t3] = trs.as_mut_slice() {
             for _ in 0..common {
-                let ps = [t0.step(), t1.step(), t2.step(), t3.step()];
-                for p in ps {
-                    sink.put(p);
-                }
+                sink.put_lanes([t0.step(), t1.step(), t2.step(), t3.step()]);
             }
         }
         let done = if trs.len() == LANES { common } else { 0 };

@@ -59,6 +59,7 @@ impl Accumulator for Density {
         &mut self.counts
     }
 
+    #[inline(always)]
     fn write_tile(counts: &mut [u32], offsets: &[u32]) {
         // A tile is a power of two of counts: the mask keeps the offset's bits.
         let last = counts.len() - 1;

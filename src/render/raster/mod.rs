@@ -15,9 +15,9 @@
 //! thread count and any schedule.
 //!
 //! The buffer is far larger than the caches, so points are not written where they land:
-//! each is appended to the bin of its buffer tile (each worker has its own bins), and a
-//! full bin is written into its tile, locked for the while, after the tile was read in
-//! order into the cache ([`bins`]). The trajectories run as a [`PointStream`], compiled
+//! gathered in batches, each is appended to the bin of its buffer tile (each worker has
+//! its own bins), and a full bin is written into its tile, locked for the while, after the
+//! tile was read in order into the cache ([`bins`]). The trajectories run as a [`PointStream`], compiled
 //! for FMA where the CPU has it ([`Isa`]); neither changes a bit of the image.
 //!
 //! Zoom views generate points everywhere and keep those in the window; `min_hits` asks for
@@ -246,6 +246,8 @@ pub(crate) struct PixelMap {
     s: u64,
     /// `log2 s` when `s` is a power of two (shifts instead of divisions).
     shift: Option<u32>,
+    /// Whether the grid's coordinates fit an `i32` and its rows' cells a `u32`.
+    narrow: bool,
 }
 
 impl PixelMap {
@@ -262,6 +264,9 @@ impl PixelMap {
             row,
             s: s as u64,
             shift: s.is_power_of_two().then(|| s.trailing_zeros()),
+            narrow: width as u64 * s as u64 <= 1 << 31
+                && height as u64 * s as u64 <= 1 << 31
+                && row <= u32::MAX as u64,
         }
     }
 
@@ -300,22 +305,133 @@ impl PixelMap {
     }
 }
 
-/// Bins a stream's in-window points.
+/// Bins a stream's in-window points: points are gathered [`bins::BATCH`] at a time, their
+/// cells computed in one loop and appended to the bins in another, so neither the chaos
+/// game's loop nor these carry each other's state.
 struct BinSink<'b, 't, 'a, A: Accumulator> {
     pm: PixelMap,
+    isa: Isa,
     bins: bins::BinWriter<'b, 't, 'a, A>,
+    /// Points gathered so far.
+    n: usize,
+    points: [[f64; 2]; bins::BATCH],
+    cells: [u64; bins::BATCH],
+}
+
+const _: () = assert!(bins::BATCH.is_multiple_of(LANES));
+
+impl<'b, 't, 'a, A: Accumulator> BinSink<'b, 't, 'a, A> {
+    fn new(pm: PixelMap, isa: Isa, bins: bins::BinWriter<'b, 't, 'a, A>) -> Self {
+        BinSink {
+            pm,
+            isa,
+            bins,
+            n: 0,
+            points: [[0.0; 2]; bins::BATCH],
+            cells: [0; bins::BATCH],
+        }
+    }
+
+    /// Bins the points gathered so far.
+    #[inline(never)]
+    fn drain(&mut self) {
+        let n = std::mem::take(&mut self.n);
+        let (points, cells) = (&self.points[..n], &mut self.cells[..n]);
+        match self.isa {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: the renderer's `isa` passed `Isa::checked`: `Fma` only where the CPU
+            // has AVX2, FMA and BMI1/2.
+            Isa::Fma => unsafe { bin_fma::<A>(&self.pm, points, cells, &mut self.bins) },
+            _ => bin::<A>(&self.pm, points, cells, &mut self.bins),
+        }
+    }
+
+    /// Bins what is left.
+    fn finish(mut self) {
+        if self.n > 0 {
+            self.drain();
+        }
+    }
+}
+
+/// The accumulator's cell of each point, `u64::MAX` outside the window.
+#[inline(always)]
+fn cells_of<A: Accumulator>(pm: &PixelMap, points: &[[f64; 2]], cells: &mut [u64]) {
+    if pm.narrow {
+        // The loop of `PixelMap::grid` without its branch, in 32-bit integers (four points
+        // per AVX2 instruction): the same cells.
+        let (row, s) = (pm.row as u32, pm.s as u32);
+        for (c, &p) in cells.iter_mut().zip(points) {
+            let fx = (p[0] - pm.x0) * pm.kx;
+            let fy = (pm.y1 - p[1]) * pm.ky;
+            let inside = (fx >= 0.0) & (fx < pm.w) & (fy >= 0.0) & (fy < pm.h);
+            let (fx, fy) = if inside { (fx, fy) } else { (0.0, 0.0) };
+            // SAFETY: 0 ≤ fx < w ≤ 2^31 and 0 ≤ fy < h ≤ 2^31 (`narrow`), or both are 0.
+            let (x, y) = unsafe { (fx.to_int_unchecked::<i32>(), fy.to_int_unchecked::<i32>()) };
+            let (x, y) = (x as u32, y as u32);
+            let (x, y) = match (A::SUBPIXELS, pm.shift) {
+                (true, _) => (x, y),
+                (false, Some(k)) => (x >> k, y >> k),
+                (false, None) => (x / s, y / s),
+            };
+            let cell = y as u64 * row as u64 + x as u64;
+            *c = if inside { cell } else { u64::MAX };
+        }
+        return;
+    }
+    for (c, &p) in cells.iter_mut().zip(points) {
+        let cell = if A::SUBPIXELS {
+            pm.subpixel_cell(p)
+        } else {
+            pm.pixel_cell(p)
+        };
+        *c = cell.unwrap_or(u64::MAX);
+    }
+}
+
+/// The points' cells ([`cells_of`], into `cells`) appended to the bins.
+#[inline(always)]
+fn bin<A: Accumulator>(
+    pm: &PixelMap,
+    points: &[[f64; 2]],
+    cells: &mut [u64],
+    bins: &mut bins::BinWriter<'_, '_, '_, A>,
+) {
+    cells_of::<A>(pm, points, cells);
+    bins.push(cells);
+}
+
+/// [`bin`] compiled for AVX2 and BMI2 ([`crate::isa`]); the same cells.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2")]
+fn bin_fma<A: Accumulator>(
+    pm: &PixelMap,
+    points: &[[f64; 2]],
+    cells: &mut [u64],
+    bins: &mut bins::BinWriter<'_, '_, '_, A>,
+) {
+    bin::<A>(pm, points, cells, bins)
 }
 
 impl<A: Accumulator> PointSink for BinSink<'_, '_, '_, A> {
     #[inline(always)]
     fn put(&mut self, p: [f64; 2]) {
-        let cell = if A::SUBPIXELS {
-            self.pm.subpixel_cell(p)
-        } else {
-            self.pm.pixel_cell(p)
-        };
-        if let Some(cell) = cell {
-            self.bins.push(cell);
+        self.points[self.n] = p;
+        self.n += 1;
+        if self.n == bins::BATCH {
+            self.drain();
+        }
+    }
+
+    #[inline(always)]
+    fn put_lanes(&mut self, ps: [[f64; 2]; LANES]) {
+        if self.n + LANES > bins::BATCH {
+            self.drain();
+        }
+        self.points[self.n..self.n + LANES].copy_from_slice(&ps);
+        self.n += LANES;
+        if self.n == bins::BATCH {
+            self.drain();
         }
     }
 }
@@ -506,7 +622,7 @@ fn run_rounds<M: Map2, A: Accumulator>(
         cfg.supersample,
         acc.row_cells(),
     );
-    let tiles = bins::Tiles::new(&mut acc);
+    let tiles = bins::Tiles::new(&mut acc, stream.isa());
     // One set of bins per worker thread, kept across rounds, all in front of the one
     // buffer. Workers take batches of trajectories as they become free (a busy machine
     // does not leave one thread waiting for another); which bins a trajectory lands in does
@@ -531,13 +647,17 @@ fn run_rounds<M: Map2, A: Accumulator>(
                 let ns: Vec<u64> = (lo..hi).map(|j| points_of(cfg.points, t, j)).collect();
                 let slot = rayon::current_thread_index().unwrap_or(0) % threads;
                 let mut own = bins::lock(&bins[slot]);
-                let mut sink = BinSink {
-                    pm,
-                    bins: own.writer(),
-                };
+                let mut sink = BinSink::new(pm, stream.isa(), own.writer());
                 match words {
-                    Some(w) => stream.run(first + lo as u64, &ns, &mut WordSink::new(w, sink))?,
-                    None => stream.run(first + lo as u64, &ns, &mut sink)?,
+                    Some(w) => {
+                        let mut words = WordSink::new(w, sink);
+                        stream.run(first + lo as u64, &ns, &mut words)?;
+                        words.into_inner().finish();
+                    }
+                    None => {
+                        stream.run(first + lo as u64, &ns, &mut sink)?;
+                        sink.finish();
+                    }
                 }
                 if let Some(pb) = progress {
                     pb.inc(ns.iter().sum());
@@ -587,7 +707,7 @@ mod tests {
     fn memory_estimate_is_what_the_buffers_take() {
         fn check<A: Accumulator>(mut acc: A, cfg: &RenderConfig, label: &str) {
             let buffer = (std::mem::size_of_val(acc.words_mut())) as u64;
-            let tiles = bins::Tiles::new(&mut acc);
+            let tiles = bins::Tiles::new(&mut acc, Isa::Portable);
             let bin = bins::Bins::new(&tiles).bytes();
             let est = cfg.memory_estimate(3);
             let part = |name: &str| {
@@ -615,6 +735,56 @@ mod tests {
                 ..cfg
             };
             check(density::Density::new(width, height), &cfg, "counts");
+        }
+    }
+
+    /// The 32-bit cell loop gives the cells of the general one, inside the window, at its
+    /// edges and outside it (non-finite points included).
+    #[test]
+    fn narrow_cells_equal_wide_cells() {
+        let win = Window {
+            min: [-1.25, -0.75],
+            max: [1.5, 1.0],
+        };
+        let mut rng = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            rng ^= rng << 13;
+            rng ^= rng >> 7;
+            rng ^= rng << 17;
+            (rng >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut points: Vec<[f64; 2]> = (0..4000)
+            .map(|_| [next() * 3.5 - 1.75, next() * 2.5 - 1.25])
+            .collect();
+        points.extend([
+            win.min,
+            win.max,
+            [win.min[0], win.max[1]],
+            [win.max[0], win.min[1]],
+            [f64::NAN, 0.0],
+            [0.0, f64::INFINITY],
+            [f64::NEG_INFINITY, 0.0],
+        ]);
+        fn check<A: Accumulator>(pm: PixelMap, points: &[[f64; 2]], what: &str) {
+            assert!(pm.narrow, "{what}");
+            let wide = PixelMap {
+                narrow: false,
+                ..pm
+            };
+            for chunk in points.chunks(bins::BATCH) {
+                let (mut a, mut b) = (vec![0; chunk.len()], vec![1; chunk.len()]);
+                cells_of::<A>(&pm, chunk, &mut a);
+                cells_of::<A>(&wide, chunk, &mut b);
+                assert_eq!(a, b, "{what}");
+                assert!(a.contains(&u64::MAX) && a.iter().any(|&c| c < u64::MAX));
+            }
+        }
+        for (w, h, s) in [(97, 61, 3), (1024, 1024, 16), (300, 200, 1), (50, 40, 4)] {
+            let row = coverage::Coverage::new(w, h, s).row_cells();
+            let pm = PixelMap::new(&win, w, h, s, row);
+            check::<coverage::Coverage>(pm, &points, &format!("coverage {w}×{h} at {s}×"));
+            let pm = PixelMap::new(&win, w, h, s, w as u64);
+            check::<density::Density>(pm, &points, &format!("density {w}×{h} at {s}×"));
         }
     }
 
