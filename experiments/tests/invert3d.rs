@@ -150,3 +150,139 @@ fn bad_views_are_refused() {
     assert!(!o.status.success());
     assert!(text(&o).contains("maps"), "{}", text(&o));
 }
+
+/// The log's rows without their last column (the seconds, which differ between runs).
+fn log_rows(dir: &Path) -> Vec<String> {
+    std::fs::read_to_string(dir.join("log.csv"))
+        .unwrap()
+        .lines()
+        .map(|l| l.rsplit_once(',').map_or(l, |(head, _)| head).to_owned())
+        .collect()
+}
+
+/// A run stopped mid-way — killed (SIGKILL) once a checkpoint exists, or stopped by SIGTERM
+/// (which checkpoints and says how to continue) — and continued with `--resume` ends with
+/// exactly the uninterrupted run's code and log. A fresh run into its folder is refused
+/// while it waits to be resumed; `--resume` refuses a folder without a run (creating
+/// nothing) and views that changed since the run started.
+#[test]
+fn a_stopped_run_resumes_to_the_uninterrupted_result() {
+    use std::time::{Duration, Instant};
+    let tmp = tempfile::tempdir().unwrap();
+    let views = tmp.path().join("views");
+    render_tetrahedron(&views);
+    let args = |out: &Path| -> Vec<String> {
+        [
+            "invert3d",
+            views.to_str().unwrap(),
+            "--maps",
+            "4",
+            "--iters",
+            "60",
+            "--supersample",
+            "1",
+            "--sigma-final",
+            "0.8",
+            "--trajectories",
+            "60",
+            "--ink",
+            "0",
+            "--checkpoint-every",
+            "3",
+            "--truth",
+            "tetrahedron",
+            "-o",
+            out.to_str().unwrap(),
+        ]
+        .map(String::from)
+        .to_vec()
+    };
+    let run = |a: &[String]| ifslab(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    let whole = tmp.path().join("whole");
+    let o = run(&args(&whole));
+    assert!(o.status.success(), "{}", text(&o));
+
+    for (mode, signal) in [("killed", None), ("terminated", Some("-TERM"))] {
+        let out = tmp.path().join(mode);
+        let mut child = Command::new(env!("CARGO_BIN_EXE_ifslab"))
+            .args(args(&out))
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let ckpt = out.join("checkpoint.json");
+        let t0 = Instant::now();
+        while !ckpt.exists() {
+            assert!(t0.elapsed() < Duration::from_secs(120), "no checkpoint");
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        match signal {
+            None => {
+                child.kill().unwrap();
+                child.wait().unwrap();
+            }
+            Some(sig) => {
+                let pid = child.id().to_string();
+                let sent = Command::new("kill").args([sig, &pid]).status().unwrap();
+                assert!(sent.success());
+                let o = child.wait_with_output().unwrap();
+                let err = String::from_utf8_lossy(&o.stderr);
+                assert!(
+                    !o.status.success(),
+                    "{mode}: the run was not stopped: {err}"
+                );
+                assert!(
+                    err.contains("interrupted after iteration")
+                        && err.contains(&format!("invert3d --resume {}", out.display())),
+                    "{err}"
+                );
+            }
+        }
+        assert!(
+            !out.join("summary.json").exists(),
+            "{mode}: the run finished before it was stopped: nothing would be resumed"
+        );
+        // A fresh run into the stopped run's folder is refused, naming --resume.
+        let o = run(&args(&out));
+        let t = text(&o);
+        assert!(
+            !o.status.success() && t.contains("already holds a run") && t.contains("--resume"),
+            "{t}"
+        );
+        let o = ifslab(&["invert3d", "--resume", out.to_str().unwrap()]);
+        assert!(o.status.success(), "{mode}: {}", text(&o));
+        assert_eq!(
+            std::fs::read_to_string(out.join("code.json")).unwrap(),
+            std::fs::read_to_string(whole.join("code.json")).unwrap(),
+            "{mode}: resumed ≠ uninterrupted"
+        );
+        assert_eq!(log_rows(&out), log_rows(&whole), "{mode}: the logs differ");
+        assert_eq!(log_rows(&out).len(), 61, "a header and 60 iterations");
+        let s: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
+                .unwrap();
+        assert_eq!(s["iterations"], 60);
+        assert!(s["fit"]["voxel_iou"].as_f64().unwrap() > 0.0, "{s}");
+    }
+
+    // Nothing to resume: a folder that does not exist (and is not created) or holds no run.
+    let nothing = tmp.path().join("nothing");
+    let o = ifslab(&["invert3d", "--resume", nothing.to_str().unwrap()]);
+    let t = text(&o);
+    assert!(
+        !o.status.success() && t.contains("holds no invert3d run to resume"),
+        "{t}"
+    );
+    assert!(!nothing.exists());
+    let o = ifslab(&["invert3d", "--resume", views.to_str().unwrap()]);
+    assert!(!o.status.success(), "{}", text(&o));
+    // Views that changed since the run started are refused (one picture replaced by
+    // another's).
+    std::fs::copy(views.join("view_003.png"), views.join("view_002.png")).unwrap();
+    let o = ifslab(&["invert3d", "--resume", whole.to_str().unwrap()]);
+    let t = text(&o);
+    assert!(
+        !o.status.success() && t.contains("changed since the run"),
+        "{t}"
+    );
+}

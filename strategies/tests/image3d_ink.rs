@@ -13,7 +13,7 @@ use ifslab::model::map3::Affine3;
 use ifslab::progress::Silent;
 use ifslab::render::splat3d::{Camera, Lens, turntable};
 use ifslab_strategies::problems::image3d::{
-    Image3dConfig, Render3dConfig, Views, attractor, run_image3d,
+    Image3dConfig, MapChoice, Render3dConfig, Views, attractor, run_image3d,
 };
 
 const SIDE: usize = 64;
@@ -118,6 +118,8 @@ fn the_ink_guard_keeps_a_fit_from_shrinking() {
                 ..Render3dConfig::default()
             },
             ink,
+            // The setting the guard was measured at: maps drawn uniformly.
+            probabilities: MapChoice::Uniform,
             ..Image3dConfig::default()
         };
         let dir = tempfile::tempdir().unwrap();

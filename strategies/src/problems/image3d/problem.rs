@@ -16,6 +16,7 @@ use ifslab::render::{Renderer, value_and_grad};
 use crate::driver::{Differentiable, Evaluation};
 use crate::error::{Error, Result};
 use crate::optim::annealing::Anneal;
+use crate::problems::image3d::config::MapChoice;
 use crate::problems::image3d::views::Views;
 
 /// Names of the logged loss terms (unweighted).
@@ -41,6 +42,8 @@ pub struct Image3dProblem<T = f32> {
     ink_slack: f64,
     /// Each view's ink (the mean of its plane).
     target_ink: Vec<f64>,
+    /// How the chaos game picks the maps (uniform unless [`Image3dProblem::with_map_choice`]).
+    choice: MapChoice,
     seed: u64,
 }
 
@@ -81,8 +84,16 @@ impl<T: SplatReal> Image3dProblem<T> {
             ink: 0.0,
             ink_slack: 0.0,
             target_ink,
+            choice: MapChoice::Uniform,
             seed,
         })
+    }
+
+    /// Draws map `i` with the probability `choice` gives the maps at θ (recomputed at every
+    /// θ; the map choices are not differentiated).
+    pub fn with_map_choice(mut self, choice: MapChoice) -> Self {
+        self.choice = choice;
+        self
     }
 
     /// Adds `weight·(1/V)·Σ_views max(0, 1 − slack − inkᵥ/targetᵥ)²` to the loss, `inkᵥ`
@@ -241,13 +252,14 @@ impl<T: SplatReal> Image3dProblem<T> {
             .collect()
     }
 
-    /// The splat at progress `frac` of the σ schedule.
-    fn splat(&self, frac: f64) -> Result<MultiViewSplat<SvdMap3, T>> {
+    /// The splat of `maps` at progress `frac` of the σ schedule.
+    fn splat(&self, frac: f64, maps: &[SvdMap3]) -> Result<MultiViewSplat<SvdMap3, T>> {
         let cfg = MultiViewConfig {
             sigma: self.sigma_at(frac),
             ..self.render.clone()
         };
-        Ok(MultiViewSplat::new(cfg, self.cameras.clone())?)
+        Ok(MultiViewSplat::new(cfg, self.cameras.clone())?
+            .with_probabilities(self.choice.for_svd(maps)))
     }
 
     /// The loss of `image` (all views) against the targets: the mean over views of the
@@ -273,7 +285,7 @@ impl<T: SplatReal> Image3dProblem<T> {
     /// and the loss (views and volume term).
     pub fn render(&self, theta: &[f64], stream: u64, frac: f64) -> Result<(f64, Vec<T>)> {
         let maps = self.maps_at(theta)?;
-        let splat = self.splat(frac)?;
+        let splat = self.splat(frac, &maps)?;
         let sampling = splat.sampling(&maps, self.seed, stream);
         let (image, _) = splat.forward(&maps, &sampling)?;
         let (loss, _) = self.objective(&image)?;
@@ -292,7 +304,7 @@ impl<T: SplatReal> Image3dProblem<T> {
 impl<T: SplatReal> Differentiable for Image3dProblem<T> {
     fn evaluate(&self, theta: &[f64], iter: u64) -> Result<Evaluation> {
         let maps = self.maps_at(theta)?;
-        let splat = self.splat(self.frac(iter))?;
+        let splat = self.splat(self.frac(iter), &maps)?;
         let sampling = splat.sampling(&maps, self.seed, iter);
         let mut ink = 0.0;
         let (view_loss, mut grad) = value_and_grad(&splat, &maps, &sampling, |image| {

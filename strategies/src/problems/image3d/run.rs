@@ -14,16 +14,17 @@ use argmin::core::observers::Observe;
 use ifslab::chaos::{ChaosGame, points3};
 use ifslab::image::Image;
 use ifslab::metrics3d::{chamfer_distance, voxel_iou};
+use ifslab::model::IfsCode;
 use ifslab::model::map3::{Affine3, SvdMap3, flat_params};
 use ifslab::progress::Progress;
 use ifslab::render::splat3d::{Camera, Lens, MultiViewConfig, turntable};
 use serde::Serialize;
 
 use crate::driver::GradState;
-use crate::driver::plan::RunPlan;
+use crate::driver::plan::{CHECKPOINT_FILE, RunPlan};
 use crate::error::{Error, Result};
 use crate::problems::image3d::config::{Image3dConfig, Start3d};
-use crate::problems::image3d::hull::{hull_start, random_start, visual_hull};
+use crate::problems::image3d::hull::{encode_start, hull_start, random_start, visual_hull};
 use crate::problems::image3d::problem::{IMAGE3D_TERMS, Image3dProblem};
 use crate::problems::image3d::views::{Views, render_views};
 
@@ -103,7 +104,8 @@ pub fn score_views(
 ) -> Result<HeldOut3d> {
     let score = |maps: &[SvdMap3]| -> Result<(f64, f64)> {
         let mut scorer =
-            Image3dProblem::<f32>::new(maps, views, cfg.render.multi_view(), cfg.loss(), cfg.seed)?;
+            Image3dProblem::<f32>::new(maps, views, cfg.render.multi_view(), cfg.loss(), cfg.seed)?
+                .with_map_choice(cfg.probabilities);
         if let Some(end) = cfg.render.sigma_final {
             scorer = scorer.with_sigma_schedule(end, cfg.iterations)?;
         }
@@ -145,7 +147,7 @@ fn selection_loss(problem: &Image3dProblem, theta: &[f64]) -> Result<f64> {
 
 /// Runs the inversion `cfg` describes on `views` into `dir` (a new folder or an empty
 /// one): the hull and its EM start, then the strategy. `progress` hears the phases;
-/// `observers` see every iteration.
+/// `observers` see every iteration. A fresh run; [`run_image3d_in`] also resumes.
 pub fn run_image3d(
     cfg: &Image3dConfig,
     views: &Views,
@@ -153,25 +155,77 @@ pub fn run_image3d(
     progress: &dyn Progress,
     observers: Vec<Box<dyn Observe<GradState> + Send>>,
 ) -> Result<Image3dOutcome> {
+    run_image3d_in(cfg, views, dir, false, progress, observers)
+}
+
+/// The config of the run in `dir` (its [`CONFIG_FILE`]); the error says when the folder
+/// holds no multi-view run.
+pub fn load_run_config(dir: &Path) -> Result<Image3dConfig> {
+    let path = dir.join(CONFIG_FILE);
+    let text = std::fs::read_to_string(&path).map_err(|e| {
+        Error::file(
+            &path,
+            format!("{} holds no invert3d run to resume ({e})", dir.display()),
+        )
+    })?;
+    toml::from_str(&text).map_err(|e| {
+        Error::file(
+            &path,
+            format!("not the config of an invert3d run, so nothing to resume: {e}"),
+        )
+    })
+}
+
+/// [`run_image3d`], or with `resume` the run in `dir` continued from its last checkpoint
+/// to exactly what it would have reached without stopping (`cfg` must be the run's own,
+/// [`load_run_config`]; the hull and its EM code are drawn again — they depend on the
+/// views and the seed alone —, the start is read back from `start.json`). A run stopped
+/// before its first checkpoint starts again from its start. A fresh run refuses a folder
+/// that holds one.
+pub fn run_image3d_in(
+    cfg: &Image3dConfig,
+    views: &Views,
+    dir: &Path,
+    resume: bool,
+    progress: &dyn Progress,
+    observers: Vec<Box<dyn Observe<GradState> + Send>>,
+) -> Result<Image3dOutcome> {
     cfg.validate()?;
+    if resume {
+        let stored = load_run_config(dir)?;
+        if &stored != cfg {
+            return Err(Error::InvalidInput(format!(
+                "{} holds a run of another config ({CONFIG_FILE}); a resumed run continues \
+                 its own",
+                dir.display()
+            )));
+        }
+    } else if dir.join(CONFIG_FILE).exists() {
+        return Err(Error::InvalidInput(format!(
+            "{} already holds a run ({CONFIG_FILE}); continue it with `ifslab invert3d \
+             --resume {}` or choose another output folder",
+            dir.display(),
+            dir.display()
+        )));
+    }
+    let checkpointed = dir.join(CHECKPOINT_FILE).is_file();
+    if resume && !checkpointed {
+        progress.message("no checkpoint yet: the run starts again from its start");
+    }
     let plan = RunPlan {
         dir,
-        resume: false,
+        resume: resume && checkpointed,
         strategy: (cfg.strategy.name(), cfg.strategy.params()),
         iterations: cfg.iterations,
         seed: cfg.seed,
         checkpoint_every: cfg.checkpoint_every,
         terms: &IMAGE3D_TERMS,
     };
-    if dir.join(CONFIG_FILE).exists() {
-        return Err(Error::InvalidInput(format!(
-            "{} already holds a run ({CONFIG_FILE}); choose another output folder",
-            dir.display()
-        )));
-    }
     let resume_from = plan.prepare()?;
-    let text = toml::to_string(cfg).map_err(|e| Error::Numerical(format!("config: {e}")))?;
-    ifslab::io::write_atomic(&dir.join(CONFIG_FILE), text.as_bytes())?;
+    if !resume {
+        let text = toml::to_string(cfg).map_err(|e| Error::Numerical(format!("config: {e}")))?;
+        ifslab::io::write_atomic(&dir.join(CONFIG_FILE), text.as_bytes())?;
+    }
 
     let (fit_views, held_views) = if cfg.hold_out > 0 {
         let (fit, held) = views.hold_out(cfg.hold_out)?;
@@ -196,6 +250,7 @@ pub fn run_image3d(
     let start_maps = match cfg.start {
         Start3d::Hull => baseline.clone(),
         Start3d::Random => random_start(cfg.maps, cfg.seed)?,
+        Start3d::Code => code_start(cfg)?,
     };
 
     let mut problem = Image3dProblem::<f32>::new(
@@ -206,13 +261,16 @@ pub fn run_image3d(
         cfg.seed,
     )?
     .with_volume(cfg.volume)?
-    .with_ink(cfg.ink, cfg.ink_slack)?;
+    .with_ink(cfg.ink, cfg.ink_slack)?
+    .with_map_choice(cfg.probabilities);
     if let Some(end) = cfg.render.sigma_final {
         problem = problem.with_sigma_schedule(end, cfg.iterations)?;
     }
+    // A folder without `start.json` resumes from the start drawn again (the same: it
+    // depends on the views and the seed alone).
     let start = plan
         .start(resume_from, || Ok(flat_params(&start_maps)))?
-        .ok_or_else(|| Error::Numerical("the run has no start".into()))?;
+        .unwrap_or_else(|| flat_params(&start_maps));
     progress.start("invert3d", cfg.iterations);
     let clock = Instant::now();
     let (problem, state) = plan.execute(problem, &start, resume_from, observers)?;
@@ -255,6 +313,29 @@ pub fn run_image3d(
         fit_seconds,
         log: plan.log_path(),
     })
+}
+
+/// The start of a `start = "code"` fit: the code in `cfg.start_code`, brought inside what
+/// the parameterisation reaches ([`encode_start`]).
+fn code_start(cfg: &Image3dConfig) -> Result<Vec<SvdMap3>> {
+    let path = cfg
+        .start_code
+        .as_deref()
+        .ok_or_else(|| Error::param("start_code", "the start's code file is missing"))?;
+    let code = IfsCode::load(path).map_err(|e| Error::file(path, e))?;
+    let maps = Affine3::from_code(&code).map_err(|e| Error::file(path, e))?;
+    if maps.len() != cfg.maps {
+        return Err(Error::file(
+            path,
+            format!(
+                "the start code has {} maps and the fit {}; ask for {} maps",
+                maps.len(),
+                cfg.maps,
+                maps.len()
+            ),
+        ));
+    }
+    maps.iter().map(encode_start).collect()
 }
 
 fn to_affine(maps: &[SvdMap3]) -> Vec<Affine3> {
@@ -328,10 +409,23 @@ pub fn write_outputs(
     truth: Option<(&[Affine3], Option<&[f64]>)>,
     other: Option<&Views>,
 ) -> Result<Summary3d> {
-    Affine3::to_code(Some("invert3d"), &outcome.maps)?.save(dir.join("code.json"))?;
-    Affine3::to_code(Some("visual hull + EM"), &outcome.baseline)?
-        .save(dir.join("baseline.json"))?;
-    let points = attractor(&outcome.maps, None, cfg.seed)?;
+    // Each code carries the probabilities it is drawn with here, so that it is drawn the
+    // same way wherever it is read.
+    let probs = cfg.probabilities.for_affine(&outcome.maps);
+    let baseline_probs = cfg.probabilities.for_affine(&outcome.baseline);
+    let save = |name: &str, maps: &[Affine3], probs: &Option<Vec<f64>>, file: &str| {
+        let mut code = Affine3::to_code(Some(name), maps)?;
+        code.probabilities = probs.clone();
+        code.save(dir.join(file))
+    };
+    save("invert3d", &outcome.maps, &probs, "code.json")?;
+    save(
+        "visual hull + EM",
+        &outcome.baseline,
+        &baseline_probs,
+        "baseline.json",
+    )?;
+    let points = attractor(&outcome.maps, probs.as_deref(), cfg.seed)?;
     write_ply(&dir.join("points.ply"), &points)?;
 
     // The fit and the views through the views' cameras, and a turntable around the fit.
@@ -340,17 +434,17 @@ pub fn write_outputs(
     render.game.trajectories *= 4;
     let svd = &outcome.svd_maps;
     let (w, h) = views.size();
-    let fitted = render_views(svd, &views.cameras, &render, None, cfg.seed)?;
+    let fitted = render_views(svd, &views.cameras, &render, probs.as_deref(), cfg.seed)?;
     let rows = [views.planes.as_slice(), fitted.as_slice()];
     save_strip(&dir.join("views.png"), &rows, views.len(), w, h)?;
     let table = turntable_around(&views.cameras, 128)?;
-    let turn = render_views(svd, &table, &render, None, cfg.seed)?;
+    let turn = render_views(svd, &table, &render, probs.as_deref(), cfg.seed)?;
     save_strip(&dir.join("turntable.png"), &[&turn], table.len(), 128, 128)?;
 
     let (baseline, fit) = match truth {
         Some((maps, probs)) => {
             let t = attractor(maps, probs, cfg.seed.wrapping_add(1))?;
-            let b = attractor(&outcome.baseline, None, cfg.seed)?;
+            let b = attractor(&outcome.baseline, baseline_probs.as_deref(), cfg.seed)?;
             // The Chamfer distance on every 11th point (10 000 a set): its nearest-neighbour
             // search scans empty cells for points far from the other set, minutes for
             // 110 000 points of a collapsed fit.

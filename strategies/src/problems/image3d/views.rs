@@ -133,6 +133,31 @@ impl Views {
         })
     }
 
+    /// A fingerprint of the views (FNV-1a, 64 bits, in hex) over every camera — its lens,
+    /// pose and size — and every plane's values: what a resumed run checks it fits the
+    /// pictures it started on.
+    pub fn digest(&self) -> String {
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        let mut eat = |bytes: &[u8]| {
+            for &b in bytes {
+                h ^= u64::from(b);
+                h = h.wrapping_mul(0x0000_0100_0000_01b3);
+            }
+        };
+        for c in &self.cameras {
+            eat(format!("{:?}", c.lens()).as_bytes());
+            for row in c.pose() {
+                row.iter().for_each(|v| eat(&v.to_bits().to_le_bytes()));
+            }
+            eat(&(c.width() as u64).to_le_bytes());
+            eat(&(c.height() as u64).to_le_bytes());
+        }
+        self.planes
+            .iter()
+            .for_each(|v| eat(&v.to_bits().to_le_bytes()));
+        format!("{h:016x}")
+    }
+
     /// Number of views.
     pub fn len(&self) -> usize {
         self.cameras.len()
