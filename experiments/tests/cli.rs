@@ -479,6 +479,22 @@ fn quick_inversion_writes_every_output_and_resumes() {
         std::fs::read(out.join("code.json")).unwrap(),
         std::fs::read(folder.join("code.json")).unwrap()
     );
+    // Only the kept run's zoom strip is drawn.
+    assert_eq!(
+        std::fs::read(out.join("zoom_strip.png")).unwrap(),
+        std::fs::read(folder.join("zoom_strip.png")).unwrap()
+    );
+    for leg in legs {
+        let strip = out
+            .join(leg["folder"].as_str().unwrap())
+            .join("zoom_strip.png");
+        assert_eq!(
+            strip.is_file(),
+            leg["chosen"] == true,
+            "{}",
+            strip.display()
+        );
+    }
     // The defaults are ifslab's recipe, written out; `--paper` is the paper's.
     let cfg = std::fs::read_to_string(out.join("config.toml")).unwrap();
     for want in [

@@ -194,13 +194,16 @@ pub fn leg_folder(i: usize) -> String {
 const KEPT_FILES: [&str; 8] = [
     "code.json",
     "render.png",
-    "zoom_strip.png",
+    ZOOM_STRIP_FILE,
     "loss.png",
     "truth.png",
     "target.png",
     LOG_FILE,
     START_FILE,
 ];
+
+/// The recovered code's 1×–64× views ([`zoom_strip`]).
+const ZOOM_STRIP_FILE: &str = "zoom_strip.png";
 
 /// Side of the full views a recovered code and its truth are compared at.
 pub const TRUTH_SIZE: usize = 256;
@@ -383,6 +386,10 @@ fn run_best_of(
     let (chosen, mut summary) = best.context("`best_of` asks for no run")?;
     legs[chosen].chosen = true;
     let kept = dir.join(leg_folder(chosen));
+    // Only the kept run's zoom strip is drawn (the runs draw none: four deep renders each).
+    if !kept.join(ZOOM_STRIP_FILE).is_file() {
+        draw_zoom_strip(&kept)?;
+    }
     for name in KEPT_FILES {
         let from = kept.join(name);
         if from.is_file() {
@@ -431,8 +438,9 @@ fn new_run_dir(
     Ok(target)
 }
 
-/// One whole run of `cfg` into `dir` (see [`run_and_report`]); a fresh one on the target
-/// `framed` where given (the target its best-of run prepared once for all its runs).
+/// One whole run of `cfg` into `dir` (see [`run_and_report`]); with `framed`, one of a
+/// best-of run's runs: a fresh one fits that target (prepared once for all the runs), and
+/// it draws no zoom strip (the kept run's is drawn once it is chosen).
 fn run_one(
     cfg: &InversionConfig,
     dir: &Path,
@@ -458,7 +466,8 @@ fn run_one(
         resume,
         vec![Box::new(ProgressObserver::new(progress))],
     )?;
-    let (metrics, lpips_metric_note) = write_outputs(cfg, dir, &outcome, &target)?;
+    let (metrics, lpips_metric_note) =
+        write_outputs(cfg, dir, &outcome, &target, framed.is_none())?;
     let seconds = started.elapsed().as_secs_f64();
     let suite = match (&cfg.target.suite, cfg.target.index) {
         (Some(suite_dir), Some(index)) => {
@@ -504,13 +513,14 @@ fn run_one(
     Ok(summary)
 }
 
-/// Code file, final render, zoom strip, loss plot; returns the render's metrics and, when
-/// LPIPS is not among them, why.
+/// Code file, final render, zoom strip (where `strip`), loss plot; returns the render's
+/// metrics and, when LPIPS is not among them, why.
 fn write_outputs(
     cfg: &InversionConfig,
     dir: &Path,
     out: &InversionOutcome,
     target: &[f32],
+    strip: bool,
 ) -> anyhow::Result<(ImageMetrics, Option<String>)> {
     let size = cfg.target.size;
     let mut code = IfsCode::from_affine2(Some("recovered"), &out.maps)
@@ -531,15 +541,46 @@ fn write_outputs(
     }
     let (net, lpips_metric_note) = lpips_for_metrics(size)?;
     let metrics = paper_metrics::<f32>(&final_render.values, &truth, size, size, net.as_ref())?;
-    zoom_strip(
-        &out.maps,
-        &probs,
-        &final_render.stats.window,
-        &dir.join("zoom_strip.png"),
-        cfg.seed,
-    )?;
+    if strip {
+        zoom_strip(
+            &out.maps,
+            &probs,
+            &final_render.stats.window,
+            &dir.join(ZOOM_STRIP_FILE),
+            cfg.seed,
+        )?;
+    }
     loss_plot(&out.log, &dir.join("loss.png"))?;
     Ok((metrics, lpips_metric_note))
+}
+
+/// The recovered code of the run in `dir` (`code.json`): its maps, evaluation probabilities
+/// and the seed of the run that found it (`cfg.seed` where the file does not say).
+fn recovered_code(dir: &Path, seed: u64) -> anyhow::Result<(IfsCode, Vec<Affine2>, Vec<f64>, u64)> {
+    let code_path = dir.join("code.json");
+    let code = IfsCode::load(&code_path)
+        .with_context(|| format!("loading the recovered code {}", code_path.display()))?;
+    let maps = code
+        .affine2()
+        .with_context(|| format!("{} must be a 2-D code", code_path.display()))?;
+    let probs = code.evaluation_probabilities()?;
+    // A best-of run keeps one of several runs at seeds of their own; the code file says which.
+    let seed = code
+        .meta
+        .get("seed")
+        .and_then(|v| v.as_u64())
+        .unwrap_or(seed);
+    Ok((code, maps, probs, seed))
+}
+
+/// Draws the zoom strip of the finished run in `dir` from its `code.json` (its framing and
+/// seed), as [`write_outputs`] would have.
+fn draw_zoom_strip(dir: &Path) -> anyhow::Result<()> {
+    let (code, maps, probs, seed) = recovered_code(dir, 0)?;
+    let window = code
+        .framing
+        .with_context(|| format!("{} has no framing", dir.join("code.json").display()))?;
+    zoom_strip(&maps, &probs, &window, &dir.join(ZOOM_STRIP_FILE), seed)
 }
 
 /// Writes a `size × size` grey picture (values in [0, 1]) as an 8-bit PNG.
@@ -562,20 +603,7 @@ fn save_square_grey(path: &Path, values: &[f32], size: usize) -> anyhow::Result<
 /// they are its pictures. Returns the files written.
 pub fn redraw_pictures(cfg: &InversionConfig, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
     let size = cfg.target.size;
-    let code_path = dir.join("code.json");
-    let code = IfsCode::load(&code_path)
-        .with_context(|| format!("loading the recovered code {}", code_path.display()))?;
-    let maps = code
-        .affine2()
-        .with_context(|| format!("{} must be a 2-D code", code_path.display()))?;
-    let probs = code.evaluation_probabilities()?;
-    // The seed of the run that found the code (a best-of run keeps one of several runs at
-    // seeds of their own; the code file says which).
-    let seed = code
-        .meta
-        .get("seed")
-        .and_then(|v| v.as_u64())
-        .unwrap_or(cfg.seed);
+    let (_, maps, probs, seed) = recovered_code(dir, cfg.seed)?;
     let mut written = Vec::new();
     let final_render = render(&maps, &probs, &eval_config(size, seed), None)?;
     final_render.save_png(&dir.join("render.png"), BitDepth::Eight, false)?;
@@ -596,10 +624,10 @@ pub fn redraw_pictures(cfg: &InversionConfig, dir: &Path) -> anyhow::Result<Vec<
         &maps,
         &probs,
         &final_render.stats.window,
-        &dir.join("zoom_strip.png"),
+        &dir.join(ZOOM_STRIP_FILE),
         seed,
     )?;
-    written.push(dir.join("zoom_strip.png"));
+    written.push(dir.join(ZOOM_STRIP_FILE));
     let log = dir.join(LOG_FILE);
     if log.is_file() {
         loss_plot(&log, &dir.join("loss.png"))?;

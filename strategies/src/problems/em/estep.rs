@@ -113,19 +113,45 @@ fn terms(model: &EmModel, table: &CodeTable) -> Terms {
     }
 }
 
-/// Fills `lp` with the log-joints of `y` and returns their log-sum-exp and maximum.
+/// Fills `lp` with `exp(ℓ_c − max)` of the log-joints of `y` (zero for a term more than
+/// [`SKIP_NATS`] below the largest) and returns their log-sum-exp and maximum.
+///
+/// `H` is the dimension where it is known when compiling (2 and 3: the loops over the
+/// coordinates unroll), 0 for any dimension; the sums are taken in the same order either
+/// way, so every `H` gives the same bits.
 #[inline]
-fn log_joints(y: &[f64], table: &CodeTable, t: &Terms, lp: &mut [f64]) -> (f64, f64) {
-    let h = y.len();
-    let mut max = f64::NEG_INFINITY;
-    for (c, (l, mu)) in lp.iter_mut().zip(table.means.chunks_exact(h)).enumerate() {
+fn log_joints<const H: usize>(
+    y: &[f64],
+    table: &CodeTable,
+    t: &Terms,
+    lp: &mut [f64],
+) -> (f64, f64) {
+    let h = if H == 0 { y.len() } else { H };
+    let y = &y[..h];
+    let per_code = table
+        .means
+        .chunks_exact(h)
+        .zip(&t.base)
+        .zip(&t.half_inv_var);
+    for (l, ((mu, base), half_inv_var)) in lp.iter_mut().zip(per_code) {
+        let mu = &mu[..h];
         let mut d2 = 0.0;
-        for (a, b) in y.iter().zip(mu) {
-            let d = a - b;
+        for j in 0..h {
+            let d = y[j] - mu[j];
             d2 += d * d;
         }
-        let v = t.base[c] - d2 * t.half_inv_var[c];
-        *l = v;
+        *l = base - d2 * half_inv_var;
+    }
+    // The largest term, in four lanes (a maximum does not depend on the order).
+    let mut lanes = [f64::NEG_INFINITY; 4];
+    let (quads, rest) = lp.as_chunks::<4>();
+    for q in quads {
+        for k in 0..4 {
+            lanes[k] = if q[k] > lanes[k] { q[k] } else { lanes[k] };
+        }
+    }
+    let mut max = f64::NEG_INFINITY;
+    for &v in lanes.iter().chain(rest) {
         if v > max {
             max = v;
         }
@@ -177,7 +203,22 @@ impl ToModel {
 
 /// One E-step on `points`: the per-code statistics and the log-likelihood.
 pub fn expectation(model: &EmModel, table: &CodeTable, points: &PointSet) -> Statistics {
+    match model.dim() {
+        2 => expectation_in::<2>(model, table, points),
+        3 => expectation_in::<3>(model, table, points),
+        _ => expectation_in::<0>(model, table, points),
+    }
+}
+
+/// [`expectation`] with the dimension `H` known when compiling (0: any; see [`log_joints`]).
+fn expectation_in<const H: usize>(
+    model: &EmModel,
+    table: &CodeTable,
+    points: &PointSet,
+) -> Statistics {
     let h = model.dim();
+    // The dimension as a constant where `H` gives it, so the coordinate loops unroll.
+    let hc = if H == 0 { h } else { H };
     let n_codes = table.len();
     let t = terms(model, table);
     let map = ToModel::new(model);
@@ -190,20 +231,26 @@ pub fn expectation(model: &EmModel, table: &CodeTable, points: &PointSet) -> Sta
             let mut y = vec![0.0; h];
             for x in block.chunks_exact(h) {
                 map.apply(x, &mut y);
-                let (lse, max) = log_joints(&y, table, &t, &mut lp);
+                let (lse, max) = log_joints::<H>(&y, table, &t, &mut lp);
+                let y = &y[..hc];
                 let yy: f64 = y.iter().map(|v| v * v).sum();
                 // lp now holds exp(ℓ_c − max); r_c = that · exp(max − lse).
                 let scale = (max - lse).exp();
-                for (c, e) in lp.iter().enumerate() {
+                let per_code = st
+                    .weight
+                    .iter_mut()
+                    .zip(st.sum_sq.iter_mut())
+                    .zip(st.sum.chunks_exact_mut(hc));
+                for (e, ((weight, sum_sq), sum)) in lp.iter().zip(per_code) {
                     if *e == 0.0 {
                         continue;
                     }
                     let r = e * scale;
-                    st.weight[c] += r;
-                    st.sum_sq[c] += r * yy;
-                    let s = &mut st.sum[c * h..(c + 1) * h];
-                    for (a, b) in s.iter_mut().zip(&y) {
-                        *a += r * b;
+                    *weight += r;
+                    *sum_sq += r * yy;
+                    let sum = &mut sum[..hc];
+                    for j in 0..hc {
+                        sum[j] += r * y[j];
                     }
                 }
                 st.log_likelihood += lse + t.constant;
@@ -247,7 +294,11 @@ pub fn log_densities(model: &EmModel, table: &CodeTable, points: &PointSet) -> V
             let mut y = vec![0.0; h];
             for (oi, x) in o.iter_mut().zip(block.chunks_exact(h)) {
                 map.apply(x, &mut y);
-                *oi = log_joints(&y, table, &t, &mut lp).0 + t.constant;
+                *oi = match h {
+                    2 => log_joints::<2>(&y, table, &t, &mut lp).0,
+                    3 => log_joints::<3>(&y, table, &t, &mut lp).0,
+                    _ => log_joints::<0>(&y, table, &t, &mut lp).0,
+                } + t.constant;
             }
         });
     out
