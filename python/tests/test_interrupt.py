@@ -17,6 +17,9 @@ INTERRUPTED = textwrap.dedent(
     """
     import os, signal, sys
     import ifslab
+    # Python leaves SIGINT ignored when it starts with it ignored (a test command run in the
+    # background of a non-interactive shell): Ctrl-C's handler is put back, as a terminal has it.
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
     def progress(event, value):
         # A real SIGINT, as Ctrl-C sends it, once a few iterations are done.

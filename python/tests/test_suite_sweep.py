@@ -168,6 +168,9 @@ def test_errors_carry_the_library_words(cli, tmp_path: Path) -> None:
 
 INTERRUPTED = """
 import os, signal, sys
+# Python leaves SIGINT ignored when it starts with it ignored (a test command run in the
+# background of a non-interactive shell): Ctrl-C's handler is put back, as a terminal has it.
+signal.signal(signal.SIGINT, signal.default_int_handler)
 import ifslab
 
 sent = []
