@@ -72,22 +72,28 @@ fn assert_central_differences(
     }
 }
 
-#[test]
-fn the_gradient_matches_central_differences() {
-    let (w, h) = (20, 16);
-    let cams = small_cameras(w, h);
+/// Three small views of the Sierpiński tetrahedron and a start of two of its maps, their
+/// linear parts scaled by `m` and their offsets by `b`.
+fn tetrahedron_views_and_start(m: f64, b: f64) -> (Views, Vec<SvdMap3>) {
+    let cams = small_cameras(20, 16);
     let truth = sierpinski_tetrahedron();
     let target = render_code(&truth, &cams, &small_render(), None, 9).unwrap();
     let views = Views::new(cams, target).unwrap();
-    let start: Vec<SvdMap3> = truth[..2]
+    let start = truth[..2]
         .iter()
-        .map(|m| {
-            let mut m = *m;
-            m.m *= 1.2;
-            m.b *= 0.7;
-            encode_start(&m).unwrap()
+        .map(|map| {
+            let mut map = *map;
+            map.m *= m;
+            map.b *= b;
+            encode_start(&map).unwrap()
         })
         .collect();
+    (views, start)
+}
+
+#[test]
+fn the_gradient_matches_central_differences() {
+    let (views, start) = tetrahedron_views_and_start(1.2, 0.7);
     let problem = Image3dProblem::<f64>::new(&start, &views, small_render(), MsMse::new(2), 5)
         .unwrap()
         .with_volume(0.05)
@@ -121,19 +127,7 @@ fn the_gradient_matches_central_differences() {
 /// fraction it is 0 and so is its gradient.
 #[test]
 fn the_ink_guard_gradient_matches_central_differences() {
-    let (w, h) = (20, 16);
-    let cams = small_cameras(w, h);
-    let truth = sierpinski_tetrahedron();
-    let target = render_code(&truth, &cams, &small_render(), None, 9).unwrap();
-    let views = Views::new(cams, target).unwrap();
-    let start: Vec<SvdMap3> = truth[..2]
-        .iter()
-        .map(|m| {
-            let mut m = *m;
-            m.m *= 0.8;
-            encode_start(&m).unwrap()
-        })
-        .collect();
+    let (views, start) = tetrahedron_views_and_start(0.8, 1.0);
     let make = |ink: f64, slack: f64| {
         Image3dProblem::<f64>::new(&start, &views, small_render(), MsMse::new(0), 5)
             .unwrap()
