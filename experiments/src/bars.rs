@@ -51,10 +51,11 @@ impl Bar {
         }
     }
 
-    /// The bar for a run of `problem`: image inversions and sdf fits report their loss as the status
-    /// line; the other problems report results worth keeping, as lines.
+    /// The bar for a run of `problem`: image inversions (2-D and 3-D) and sdf fits report
+    /// their loss as the status line; the other problems report results worth keeping, as
+    /// lines.
     pub fn for_problem(problem: &str) -> Self {
-        if problem == "image" || problem == "sdf" {
+        if matches!(problem, "image" | "sdf" | "image3d") {
             Bar::default()
         } else {
             Bar::logging()

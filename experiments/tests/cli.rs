@@ -29,6 +29,7 @@ fn every_example_config_is_valid() {
                 RunConfig::Texture(c) => Some(c.source.clone()),
                 RunConfig::Sdf(c) => Some(c.target.clone()),
                 RunConfig::Flame(c) => Some(c.target.clone()),
+                RunConfig::Image3d(c) => Some(c.views.join("turntable.json")),
             };
             if let Some(f) = file {
                 assert!(f.is_file(), "{}: {} missing", path.display(), f.display());
@@ -40,7 +41,7 @@ fn every_example_config_is_valid() {
     assert!(n >= 4, "expected the example configs, found {n}");
     assert_eq!(
         problems.into_iter().collect::<Vec<_>>(),
-        ["flame", "image", "points", "sdf", "texture"],
+        ["flame", "image", "image3d", "points", "sdf", "texture"],
         "an example config for every problem"
     );
 }

@@ -286,3 +286,81 @@ fn a_stopped_run_resumes_to_the_uninterrupted_result() {
         "{t}"
     );
 }
+
+/// `ifslab run` of a `problem = "image3d"` config (the shipped example) and `ifslab
+/// invert3d` with the same settings as flags are one run: the same code, the same log. The
+/// config's folder resumes with `ifslab run --resume`; a folder made before configs named
+/// their views (a `config.toml` of the fit's keys alone, the inputs in `invert3d.json`)
+/// still resumes with `invert3d --resume`, to the same code.
+#[test]
+fn a_config_runs_what_the_flags_run_and_old_folders_still_resume() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let config = root.join("experiments/configs/image3d_tetrahedron.toml");
+    let views = root.join("data/views/tetrahedron");
+    let by_config = tmp.path().join("config");
+    let by_flags = tmp.path().join("flags");
+    let o = ifslab(&[
+        "run",
+        config.to_str().unwrap(),
+        "--set",
+        "iterations=24",
+        "-o",
+        by_config.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("voxel IoU baseline"), "{}", text(&o));
+    let o = ifslab(&[
+        "invert3d",
+        views.to_str().unwrap(),
+        "--maps",
+        "4",
+        "--iters",
+        "24",
+        "--truth",
+        "tetrahedron",
+        "--supersample",
+        "1",
+        "--sigma-final",
+        "0.8",
+        "--trajectories",
+        "100",
+        "--ink",
+        "0",
+        "-o",
+        by_flags.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let read = |dir: &Path, f: &str| std::fs::read_to_string(dir.join(f)).unwrap();
+    assert_eq!(read(&by_config, "code.json"), read(&by_flags, "code.json"));
+    assert_eq!(log_rows(&by_config), log_rows(&by_flags));
+    let cfg: toml::Table = read(&by_flags, "config.toml").parse().unwrap();
+    assert_eq!(cfg["problem"].as_str(), Some("image3d"));
+    assert!(cfg["views"].as_str().unwrap().ends_with("tetrahedron"));
+
+    // The config's folder, its outputs removed, resumes through `ifslab run --resume`.
+    let code = read(&by_config, "code.json");
+    std::fs::remove_file(by_config.join("code.json")).unwrap();
+    let o = ifslab(&[
+        "run",
+        config.to_str().unwrap(),
+        "--set",
+        "iterations=24",
+        "--resume",
+        "-o",
+        by_config.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert_eq!(read(&by_config, "code.json"), code);
+
+    // The same folder as the command wrote them before: the inputs' keys out of the config.
+    let mut old = cfg.clone();
+    for k in ["problem", "views", "truth", "score_views"] {
+        old.remove(k);
+    }
+    std::fs::write(by_flags.join("config.toml"), toml::to_string(&old).unwrap()).unwrap();
+    std::fs::remove_file(by_flags.join("code.json")).unwrap();
+    let o = ifslab(&["invert3d", "--resume", by_flags.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert_eq!(read(&by_flags, "code.json"), code);
+}

@@ -1,6 +1,6 @@
 //! Any run `ifslab run` accepts: one TOML config whose top-level `problem` key says which
 //! problem it describes (`"image"` — the default, so older configs keep working —,
-//! `"points"`, `"texture"`, `"sdf"` or `"flame"`), and
+//! `"points"`, `"texture"`, `"sdf"`, `"flame"` or `"image3d"`), and
 //! one call that turns it into a run folder. The command line, the sweeps and any other front
 //! end go through [`RunConfig::run`].
 
@@ -15,6 +15,7 @@ use serde::Serialize;
 
 use crate::progress::Progress;
 use crate::runs::flame;
+use crate::runs::image3d::{self, Image3dRunConfig};
 use crate::runs::inversion;
 use crate::runs::points::{self, PointsConfig};
 use crate::runs::sdf;
@@ -36,6 +37,8 @@ pub enum RunConfig {
     Sdf(Box<SdfConfig>),
     /// Image → colour fractal flame (`problem = "flame"`).
     Flame(Box<FlameLearnConfig>),
+    /// Pictures around a 3-D fractal → an IFS code of space (`problem = "image3d"`).
+    Image3d(Box<Image3dRunConfig>),
 }
 
 /// What every run reports when it ends: a one-line headline for people and the
@@ -52,7 +55,8 @@ pub struct RunReport {
 
 impl RunConfig {
     /// The problems a config can name, in the order the help text lists them.
-    pub const PROBLEMS: &'static [&'static str] = &["image", "points", "texture", "sdf", "flame"];
+    pub const PROBLEMS: &'static [&'static str] =
+        &["image", "points", "texture", "sdf", "flame", "image3d"];
 
     /// The problems whose `paper` key only picks the defaults of keys a config leaves out
     /// ([`super::table::HAS_RECIPES`]).
@@ -91,6 +95,10 @@ impl RunConfig {
             "flame" => {
                 let cfg = FlameLearnConfig::from_table(table, origin)?.relative_to(dir);
                 Ok(RunConfig::Flame(Box::new(cfg)))
+            }
+            "image3d" => {
+                let cfg = Image3dRunConfig::from_table(table, origin)?.relative_to(dir);
+                Ok(RunConfig::Image3d(Box::new(cfg)))
             }
             other => bail!(
                 "{}: unknown problem `{other}` (known: {})",
@@ -174,6 +182,7 @@ impl RunConfig {
             RunConfig::Texture(_) => "texture",
             RunConfig::Sdf(_) => "sdf",
             RunConfig::Flame(_) => "flame",
+            RunConfig::Image3d(_) => "image3d",
         }
     }
 
@@ -187,6 +196,7 @@ impl RunConfig {
             RunConfig::Texture(c) => toml::Table::try_from(c.resolved()?)?,
             RunConfig::Sdf(c) => toml::Table::try_from(c.with_absolute_paths()?)?,
             RunConfig::Flame(c) => toml::Table::try_from(c.with_absolute_paths()?)?,
+            RunConfig::Image3d(c) => c.with_absolute_paths()?.to_table()?,
         };
         let mut t = toml::Table::new();
         t.insert(PROBLEM_KEY.into(), self.problem().into());
@@ -202,6 +212,7 @@ impl RunConfig {
             RunConfig::Texture(c) => c.output.as_deref(),
             RunConfig::Sdf(c) => c.output.as_deref(),
             RunConfig::Flame(c) => c.output.as_deref(),
+            RunConfig::Image3d(c) => c.output.as_deref(),
         }
     }
 
@@ -252,6 +263,14 @@ impl RunConfig {
                 Ok(RunReport {
                     problem: self.problem().into(),
                     headline: s.headline(),
+                    summary: serde_json::to_value(&s)?,
+                })
+            }
+            RunConfig::Image3d(cfg) => {
+                let s = image3d::run(cfg, dir, resume, progress)?;
+                Ok(RunReport {
+                    problem: self.problem().into(),
+                    headline: image3d::report(&s),
                     summary: serde_json::to_value(&s)?,
                 })
             }
@@ -327,6 +346,7 @@ mod tests {
             ("texture_brick.toml", "texture"),
             ("sdf_koch.toml", "sdf"),
             ("flame_circles3.toml", "flame"),
+            ("image3d_tetrahedron.toml", "image3d"),
         ] {
             let c = RunConfig::load(&dir.join(name)).unwrap();
             assert_eq!(c.problem(), problem);

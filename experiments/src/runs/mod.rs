@@ -10,6 +10,8 @@
 //!   (learned `.flame` file, renders side by side with the target);
 //! - [`sdf`]: image → segment pattern by the differentiable SDF raster (fitted pattern,
 //!   render, loss plot, summary);
+//! - [`image3d`]: pictures taken around a 3-D fractal → an IFS code of space (code, point
+//!   cloud, turntable, scores against a truth);
 //! - [`texture`]: fractal-coding texture upsampling, and the paper's tables and figures
 //!   ([`texture::repro`]);
 //! - [`lock`]: one process per run folder; [`table`]: configs as TOML tables;
@@ -17,6 +19,7 @@
 
 pub mod config;
 pub mod flame;
+pub mod image3d;
 pub mod inversion;
 pub mod landscape;
 pub mod legs;

@@ -28,9 +28,6 @@ use crate::problems::image3d::hull::{encode_start, hull_start, random_start, vis
 use crate::problems::image3d::problem::{IMAGE3D_TERMS, Image3dProblem};
 use crate::problems::image3d::views::{Views, render_views};
 
-/// The resolved config a run folder keeps (its presence marks a folder holding a run).
-pub const CONFIG_FILE: &str = "config.toml";
-
 /// Random streams the start and the last iterate are compared on (never an iteration's).
 const SELECTION_STREAMS: [u64; 2] = [u64::MAX - 1, u64::MAX - 2];
 
@@ -158,30 +155,12 @@ pub fn run_image3d(
     run_image3d_in(cfg, views, dir, false, progress, observers)
 }
 
-/// The config of the run in `dir` (its [`CONFIG_FILE`]); the error says when the folder
-/// holds no multi-view run.
-pub fn load_run_config(dir: &Path) -> Result<Image3dConfig> {
-    let path = dir.join(CONFIG_FILE);
-    let text = std::fs::read_to_string(&path).map_err(|e| {
-        Error::file(
-            &path,
-            format!("{} holds no invert3d run to resume ({e})", dir.display()),
-        )
-    })?;
-    toml::from_str(&text).map_err(|e| {
-        Error::file(
-            &path,
-            format!("not the config of an invert3d run, so nothing to resume: {e}"),
-        )
-    })
-}
-
 /// [`run_image3d`], or with `resume` the run in `dir` continued from its last checkpoint
-/// to exactly what it would have reached without stopping (`cfg` must be the run's own,
-/// [`load_run_config`]; the hull and its EM code are drawn again — they depend on the
-/// views and the seed alone —, the start is read back from `start.json`). A run stopped
-/// before its first checkpoint starts again from its start. A fresh run refuses a folder
-/// that holds one.
+/// to exactly what it would have reached without stopping (`cfg` must be the run's own:
+/// the caller keeps the run's config beside it; the hull and its EM code are drawn again —
+/// they depend on the views and the seed alone —, the start is read back from
+/// `start.json`). A run stopped before its first checkpoint starts again from its start. A
+/// fresh run refuses a folder that holds a checkpoint.
 pub fn run_image3d_in(
     cfg: &Image3dConfig,
     views: &Views,
@@ -191,23 +170,6 @@ pub fn run_image3d_in(
     observers: Vec<Box<dyn Observe<GradState> + Send>>,
 ) -> Result<Image3dOutcome> {
     cfg.validate()?;
-    if resume {
-        let stored = load_run_config(dir)?;
-        if &stored != cfg {
-            return Err(Error::InvalidInput(format!(
-                "{} holds a run of another config ({CONFIG_FILE}); a resumed run continues \
-                 its own",
-                dir.display()
-            )));
-        }
-    } else if dir.join(CONFIG_FILE).exists() {
-        return Err(Error::InvalidInput(format!(
-            "{} already holds a run ({CONFIG_FILE}); continue it with `ifslab invert3d \
-             --resume {}` or choose another output folder",
-            dir.display(),
-            dir.display()
-        )));
-    }
     let checkpointed = dir.join(CHECKPOINT_FILE).is_file();
     if resume && !checkpointed {
         progress.message("no checkpoint yet: the run starts again from its start");
@@ -222,10 +184,6 @@ pub fn run_image3d_in(
         terms: &IMAGE3D_TERMS,
     };
     let resume_from = plan.prepare()?;
-    if !resume {
-        let text = toml::to_string(cfg).map_err(|e| Error::Numerical(format!("config: {e}")))?;
-        ifslab::io::write_atomic(&dir.join(CONFIG_FILE), text.as_bytes())?;
-    }
 
     let (fit_views, held_views) = if cfg.hold_out > 0 {
         let (fit, held) = views.hold_out(cfg.hold_out)?;

@@ -1,0 +1,476 @@
+//! Multi-view inversion runs (`problem = "image3d"`, `ifslab invert3d`): pictures taken
+//! around a 3-D fractal, with their cameras, → an IFS code of space, in a run folder.
+//!
+//! A config names the views folder (`views`: the pictures and a NeRF-style
+//! `transforms.json` or a `turntable.json`), optionally the code that drew them (`truth`: a
+//! 3-D code file or a built-in name, for the voxel IoU and Chamfer scores) and views to score
+//! on that the fit never sees (`score_views`); every other key is the fit's
+//! ([`Image3dConfig`]: maps, start, strategy, splat, loss, hull). The folder gets the
+//! resolved config (`config.toml`, `problem = "image3d"`), `invert3d.json` (the views'
+//! fingerprint, so that a resumed run refuses views that changed), checkpoints and
+//! `log.csv` as it goes, then `code.json`, `baseline.json`, `points.ply`, `views.png`,
+//! `turntable.png` and `summary.json` ([`write_outputs`]).
+//!
+//! ```toml
+//! problem = "image3d"
+//! views = "views/"          # relative to the config file
+//! maps = 4
+//! iterations = 150
+//! truth = "tetrahedron"     # optional
+//! ```
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use anyhow::{Context, anyhow, bail};
+use ifslab::model::IfsCode;
+use ifslab::model::map3::{Affine3, fern_3d, sierpinski_tetrahedron};
+use ifslab_strategies::problems::image3d::{
+    Image3dConfig, Render3dConfig, Summary3d, TurntableFile, Views, load_views, render_code,
+    run_image3d_in, write_outputs, write_views,
+};
+use serde::{Deserialize, Serialize};
+
+use crate::progress::{Progress, ProgressObserver};
+use crate::runs::inversion::CONFIG_FILE;
+use crate::runs::legs::LegProgress;
+use crate::runs::lock::lock_run_dir;
+
+/// The run folder's record of its inputs besides its config: where the views are and their
+/// fingerprint when the run started (a resumed run refuses views that changed since).
+pub const INPUTS_FILE: &str = "invert3d.json";
+
+/// The built-in 3-D codes a `truth` may name instead of a file.
+pub const BUILT_IN_CODES: &[&str] = &["tetrahedron", "sierpinski-tetrahedron", "fern3d", "fern-3d"];
+
+/// The keys of an `image3d` config that name its inputs; every other key is the fit's.
+const INPUT_KEYS: [&str; 4] = ["views", "truth", "score_views", "output"];
+
+/// A multi-view inversion: its inputs and the fit's settings.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image3dRunConfig {
+    /// The views folder (pictures and cameras).
+    pub views: PathBuf,
+    /// The code that drew the views (a 3-D code file or one of [`BUILT_IN_CODES`]): the
+    /// summary then scores baseline and fit against its attractor.
+    pub truth: Option<String>,
+    /// A folder of views the fit never sees, to score baseline and fit on.
+    pub score_views: Option<PathBuf>,
+    /// The output folder, when the config names one.
+    pub output: Option<PathBuf>,
+    /// The fit.
+    pub fit: Image3dConfig,
+}
+
+/// What [`INPUTS_FILE`] holds (the keys of the runs made before configs named their views
+/// keep them here too; [`load_run`] reads such a folder).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+struct Inputs {
+    /// The views folder (absolute).
+    views: PathBuf,
+    /// [`Views::digest`] of the views when the run started.
+    views_digest: String,
+    /// The truth (a file's absolute path, or a built-in name).
+    truth: Option<String>,
+    /// The views to score on (absolute).
+    score_views: Option<PathBuf>,
+}
+
+impl Image3dRunConfig {
+    /// A config from a TOML table without its `problem` key; `origin` (the file it came
+    /// from) names it in errors. File names are as written (see
+    /// [`Image3dRunConfig::relative_to`]). The fit's keys are checked like every config's:
+    /// an unknown one is named.
+    pub fn from_table(mut table: toml::Table, origin: &Path) -> anyhow::Result<Self> {
+        let [views, truth, score_views, output] =
+            INPUT_KEYS.map(|key| table.remove(key).map(|v| (key, v)));
+        let text = |entry: Option<(&str, toml::Value)>| -> anyhow::Result<Option<String>> {
+            match entry {
+                None => Ok(None),
+                Some((_, toml::Value::String(s))) => Ok(Some(s)),
+                Some((key, v)) => bail!(
+                    "{}: `{key}` must be a string (a file or folder name), got {v}",
+                    origin.display()
+                ),
+            }
+        };
+        let views = text(views)?.ok_or_else(|| {
+            anyhow!(
+                "{}: an image3d run needs `views`, the folder of its pictures and their \
+                 cameras (a transforms.json or turntable.json beside the pictures)",
+                origin.display()
+            )
+        })?;
+        let truth = text(truth)?;
+        let score_views = text(score_views)?.map(PathBuf::from);
+        let output = text(output)?.map(PathBuf::from);
+        let fit: Image3dConfig = toml::Value::Table(table)
+            .try_into()
+            .with_context(|| format!("{}: an image3d config", origin.display()))?;
+        fit.validate()
+            .with_context(|| format!("{}: an image3d config", origin.display()))?;
+        Ok(Image3dRunConfig {
+            views: PathBuf::from(views),
+            truth,
+            score_views,
+            output,
+            fit,
+        })
+    }
+
+    /// Relative file names read from `dir` (the config file's folder); built-in code names
+    /// stay names.
+    pub fn relative_to(mut self, dir: &Path) -> Self {
+        let join = |p: &Path| {
+            if p.is_relative() {
+                dir.join(p)
+            } else {
+                p.to_path_buf()
+            }
+        };
+        self.views = join(&self.views);
+        self.score_views = self.score_views.as_deref().map(join);
+        self.output = self.output.as_deref().map(join);
+        self.fit.start_code = self.fit.start_code.as_deref().map(join);
+        self.truth = self.truth.map(|t| {
+            if BUILT_IN_CODES.contains(&t.as_str()) {
+                t
+            } else {
+                join(Path::new(&t)).to_string_lossy().into_owned()
+            }
+        });
+        self
+    }
+
+    /// The config with every file named absolutely (what a run's id hashes).
+    pub fn with_absolute_paths(&self) -> anyhow::Result<Self> {
+        let abs =
+            |p: &Path| std::path::absolute(p).with_context(|| format!("resolving {}", p.display()));
+        let mut c = self.clone();
+        c.views = abs(&c.views)?;
+        c.score_views = c.score_views.as_deref().map(abs).transpose()?;
+        c.output = c.output.as_deref().map(abs).transpose()?;
+        c.fit.start_code = c.fit.start_code.as_deref().map(abs).transpose()?;
+        c.truth = match c.truth {
+            Some(t) if !BUILT_IN_CODES.contains(&t.as_str()) => {
+                Some(abs(Path::new(&t))?.to_string_lossy().into_owned())
+            }
+            t => t,
+        };
+        Ok(c)
+    }
+
+    /// The config as a TOML table without its `problem` key: the fit's keys and the inputs'.
+    pub fn to_table(&self) -> anyhow::Result<toml::Table> {
+        let mut t = toml::Table::try_from(&self.fit).context("writing the image3d config")?;
+        let path = |p: &Path| toml::Value::String(p.to_string_lossy().into_owned());
+        t.insert("views".into(), path(&self.views));
+        if let Some(truth) = &self.truth {
+            t.insert("truth".into(), truth.clone().into());
+        }
+        if let Some(s) = &self.score_views {
+            t.insert("score_views".into(), path(s));
+        }
+        if let Some(o) = &self.output {
+            t.insert("output".into(), path(o));
+        }
+        Ok(t)
+    }
+}
+
+/// A 3-D code by built-in name ([`BUILT_IN_CODES`]) or file, with its probabilities.
+pub fn load_code3(spec: &str) -> anyhow::Result<(Vec<Affine3>, Option<Vec<f64>>)> {
+    match spec {
+        "tetrahedron" | "sierpinski-tetrahedron" => Ok((sierpinski_tetrahedron(), None)),
+        "fern3d" | "fern-3d" => {
+            let (maps, probs) = fern_3d();
+            Ok((maps, Some(probs)))
+        }
+        path => {
+            let code = IfsCode::load(path).with_context(|| {
+                format!(
+                    "reading the 3-D code {path} (or name one of {})",
+                    BUILT_IN_CODES.join(", ")
+                )
+            })?;
+            let maps = Affine3::from_code(&code).with_context(|| path.to_owned())?;
+            Ok((maps, code.probabilities.clone()))
+        }
+    }
+}
+
+/// The views of a run, read from `dir` and named in the error.
+fn read_views(dir: &Path, what: &str) -> anyhow::Result<Views> {
+    load_views(dir).with_context(|| format!("reading {what} in {}", dir.display()))
+}
+
+/// Runs `cfg` into `dir` (a fresh folder, or with `resume` the folder of a stopped run of
+/// the same config, continued to the result it would have reached without stopping),
+/// reporting the phases and iterations to `progress`; returns the summary it wrote.
+pub fn run(
+    cfg: &Image3dRunConfig,
+    dir: &Path,
+    resume: bool,
+    progress: Box<dyn Progress>,
+) -> anyhow::Result<Summary3d> {
+    cfg.fit.validate()?;
+    let cfg = cfg.with_absolute_paths()?;
+    // Refused before the folder is locked (which would create it).
+    if resume && !dir.join(CONFIG_FILE).is_file() {
+        bail!(
+            "{} holds no invert3d run to resume (no {CONFIG_FILE}); start one with \
+             `ifslab invert3d VIEWS -o {}`",
+            dir.display(),
+            dir.display()
+        );
+    }
+    // Inputs that cannot be read are refused before the folder is locked (and made).
+    let views = read_views(&cfg.views, "the views")?;
+    let truth = cfg.truth.as_deref().map(load_code3).transpose()?;
+    let other = match &cfg.score_views {
+        Some(d) => Some(read_views(d, "the views to score")?),
+        None => None,
+    };
+    let _lock = lock_run_dir(dir)?;
+    if resume {
+        let inputs = read_inputs(dir)?;
+        if views.digest() != inputs.views_digest {
+            bail!(
+                "the views in {} changed since the run in {} started (their fingerprint was \
+                 {}, now {}); a resumed run must fit the pictures it started on",
+                cfg.views.display(),
+                dir.display(),
+                inputs.views_digest,
+                views.digest()
+            );
+        }
+    } else {
+        if dir.join(CONFIG_FILE).exists() {
+            bail!(
+                "{} already holds a run ({CONFIG_FILE}); continue it with `ifslab invert3d \
+                 --resume {}` or choose another output folder",
+                dir.display(),
+                dir.display()
+            );
+        }
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        let resolved = crate::runs::RunConfig::Image3d(Box::new(cfg.clone())).to_table()?;
+        ifslab::io::write_atomic(
+            &dir.join(CONFIG_FILE),
+            toml::to_string_pretty(&resolved)?.as_bytes(),
+        )?;
+        let inputs = Inputs {
+            views: cfg.views.clone(),
+            views_digest: views.digest(),
+            truth: cfg.truth.clone(),
+            score_views: cfg.score_views.clone(),
+        };
+        ifslab::io::write_atomic(
+            &dir.join(INPUTS_FILE),
+            serde_json::to_string_pretty(&inputs)?.as_bytes(),
+        )?;
+    }
+    let progress: Arc<dyn Progress> = Arc::from(progress);
+    let observer = LegProgress::new(progress.clone(), 0, 1, cfg.fit.iterations);
+    let outcome = run_image3d_in(
+        &cfg.fit,
+        &views,
+        dir,
+        resume,
+        &*progress,
+        vec![Box::new(ProgressObserver::new(Box::new(observer)))],
+    )
+    .map_err(|e| match e {
+        ifslab_strategies::Error::Interrupted(_) => anyhow::Error::new(e).context(format!(
+            "continue it with `ifslab invert3d --resume {}`",
+            dir.display()
+        )),
+        e => e.into(),
+    })?;
+    let truth_ref = truth.as_ref().map(|(m, p)| (m.as_slice(), p.as_deref()));
+    Ok(write_outputs(
+        dir,
+        &cfg.fit,
+        &views,
+        &outcome,
+        truth_ref,
+        other.as_ref(),
+    )?)
+}
+
+fn read_inputs(dir: &Path) -> anyhow::Result<Inputs> {
+    let path = dir.join(INPUTS_FILE);
+    let bytes = std::fs::read(&path).with_context(|| {
+        format!(
+            "{} holds no record of its views ({INPUTS_FILE}), so it cannot resume",
+            dir.display()
+        )
+    })?;
+    serde_json::from_slice(&bytes).with_context(|| format!("reading {}", path.display()))
+}
+
+/// The config of the run in `dir`, to resume it: its `config.toml`, or for a folder made
+/// before configs named their views (a `config.toml` of the fit's keys alone), that with
+/// the inputs its `invert3d.json` kept.
+pub fn load_run(dir: &Path) -> anyhow::Result<Image3dRunConfig> {
+    let path = dir.join(CONFIG_FILE);
+    if !path.is_file() {
+        bail!(
+            "{} holds no invert3d run to resume (no {CONFIG_FILE}); start one with \
+             `ifslab invert3d VIEWS -o {}`",
+            dir.display(),
+            dir.display()
+        );
+    }
+    let text =
+        std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+    let table: toml::Table = text
+        .parse()
+        .with_context(|| format!("{} is not valid TOML", path.display()))?;
+    if table.contains_key(crate::runs::config::PROBLEM_KEY) {
+        return match crate::runs::RunConfig::load_resolved(&path)? {
+            crate::runs::RunConfig::Image3d(c) => Ok(*c),
+            other => bail!(
+                "{} holds a {} run, not an invert3d one (resume it with `ifslab run --resume`)",
+                dir.display(),
+                other.problem()
+            ),
+        };
+    }
+    let fit: Image3dConfig = toml::Value::Table(table).try_into().with_context(|| {
+        format!(
+            "{}: not the config of an invert3d run, so nothing to resume",
+            path.display()
+        )
+    })?;
+    let inputs = read_inputs(dir)?;
+    Ok(Image3dRunConfig {
+        views: inputs.views,
+        truth: inputs.truth,
+        score_views: inputs.score_views,
+        output: None,
+        fit,
+    })
+}
+
+/// The lines that report a finished run: the hull, the fit, the scores against a truth,
+/// the ink of the renders, and the scores on views the fit never saw.
+pub fn report(s: &Summary3d) -> String {
+    let mut out = format!(
+        "hull {} voxels + EM in {:.1} s, {} iterations in {:.1} s; loss baseline {:.5} → \
+         fit {:.5} ({})",
+        s.hull_voxels,
+        s.seconds[0],
+        s.iterations,
+        s.seconds[1],
+        s.loss.baseline,
+        s.loss.fit,
+        s.returned,
+    );
+    if let (Some(b), Some(f)) = (&s.baseline, &s.fit) {
+        out += &format!(
+            "; voxel IoU baseline {:.3} → fit {:.3}, Chamfer {:.4} → {:.4}",
+            b.voxel_iou, f.voxel_iou, b.chamfer, f.chamfer
+        );
+    }
+    out += &format!(
+        "\nink of the renders over the views': baseline {:.2}, fit {:.2}",
+        s.ink_ratio[0], s.ink_ratio[1]
+    );
+    if let Some(h) = &s.held_out {
+        out += &format!(
+            "; held-out views {:?}: loss baseline {:.5} → fit {:.5}, ink {:.2} → {:.2}",
+            h.views, h.loss[0], h.loss[1], h.ink_ratio[0], h.ink_ratio[1]
+        );
+    }
+    if let Some(h) = &s.other_views {
+        out += &format!(
+            "\nother views ({}): loss baseline {:.5} → fit {:.5}, ink {:.2} → {:.2}",
+            h.views.len(),
+            h.loss[0],
+            h.loss[1],
+            h.ink_ratio[0],
+            h.ink_ratio[1]
+        );
+    }
+    out
+}
+
+/// Draws `count` turntable views of `side²` of the 3-D code `spec` (a built-in name or a
+/// file) into `dir` with the library's multi-view splat (σ 0.8 at 1×, 400 trajectories, 25°
+/// elevation, a pinhole of 50° at distance 4): the views the tests and the README's numbers
+/// invert.
+pub fn render_turntable(
+    spec: &str,
+    dir: &Path,
+    count: usize,
+    side: usize,
+    seed: u64,
+) -> anyhow::Result<()> {
+    let (maps, probs) = load_code3(spec)?;
+    let table = TurntableFile {
+        views: count,
+        elevation_deg: 25.0,
+        distance: 4.0,
+        fov_x_deg: Some(50.0),
+        orthographic_extent: None,
+        files: None,
+    };
+    let cameras = table.cameras(side, side)?;
+    let mut render = Render3dConfig::default().multi_view();
+    render.supersample = 1;
+    render.sigma = 0.8;
+    render.game.trajectories = 400;
+    let planes = render_code(&maps, &cameras, &render, probs.as_deref(), seed)?;
+    write_views(dir, &table, side, side, &planes)?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_inputs_keys_are_not_the_fits() {
+        let fit = toml::Table::try_from(Image3dConfig::default()).unwrap();
+        for k in INPUT_KEYS {
+            assert!(!fit.contains_key(k), "{k}");
+        }
+    }
+
+    #[test]
+    fn a_config_reads_back_from_its_table_with_files_from_its_folder() {
+        let text = "views = \"v\"\ntruth = \"fern3d\"\nscore_views = \"w\"\nmaps = 3\n\
+                    start = \"code\"\nstart_code = \"c.json\"\n";
+        let table: toml::Table = text.parse().unwrap();
+        let c = Image3dRunConfig::from_table(table, Path::new("/a/b/x.toml"))
+            .unwrap()
+            .relative_to(Path::new("/a/b"));
+        assert_eq!(c.views, Path::new("/a/b/v"));
+        assert_eq!(c.score_views.as_deref(), Some(Path::new("/a/b/w")));
+        assert_eq!(c.fit.start_code.as_deref(), Some(Path::new("/a/b/c.json")));
+        assert_eq!(
+            c.truth.as_deref(),
+            Some("fern3d"),
+            "a built-in name stays a name"
+        );
+        assert_eq!(c.fit.maps, 3);
+        let back =
+            Image3dRunConfig::from_table(c.to_table().unwrap(), Path::new("y.toml")).unwrap();
+        assert_eq!(back, c);
+    }
+
+    #[test]
+    fn a_config_without_views_or_with_an_unknown_key_is_refused_by_name() {
+        for (text, want) in [
+            ("maps = 3\n", "needs `views`"),
+            ("views = \"v\"\nmapz = 3\n", "mapz"),
+            ("views = 3\n", "`views` must be a string"),
+            ("views = \"v\"\nmaps = 0\n", "maps"),
+        ] {
+            let e = Image3dRunConfig::from_table(text.parse().unwrap(), Path::new("x.toml"))
+                .unwrap_err();
+            assert!(format!("{e:#}").contains(want), "{text}: {e:#}");
+        }
+    }
+}
