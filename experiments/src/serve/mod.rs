@@ -30,7 +30,7 @@ use ifslab::render::{FIT_FILL, fit_window};
 
 pub use flame::FlameTiles;
 pub use server::{RunningServer, ServeOptions, TileStats, serve};
-pub use tile::{TileError, TileMode, TileRenderer, TileRequest, Tiling};
+pub use tile::{DensityTile, TileError, TileMode, TileRenderer, TileRequest, Tiling, ToneMap};
 
 use ifslab::progress::Progress;
 

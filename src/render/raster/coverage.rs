@@ -98,7 +98,7 @@ impl Accumulator for Coverage {
         }
     }
 
-    fn finish(self, width: u32, height: u32) -> Vec<f32> {
+    fn finish(self, width: u32, height: u32) -> (Vec<f32>, u64) {
         let (w, s) = (width as usize, self.s);
         let inv = 1.0 / (s * s) as f32;
         let mut out = vec![0.0f32; w * height as usize];
@@ -125,7 +125,7 @@ impl Accumulator for Coverage {
                 *o = c as f32 * inv;
             }
         });
-        out
+        (out, 0)
     }
 }
 

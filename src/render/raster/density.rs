@@ -69,16 +69,17 @@ impl Accumulator for Density {
         }
     }
 
-    fn finish(self, _width: u32, _height: u32) -> Vec<f32> {
+    fn finish(self, _width: u32, _height: u32) -> (Vec<f32>, u64) {
         let counts = &self.counts[..self.pixels];
         let max = counts.iter().copied().max().unwrap_or(0);
         if max == 0 {
-            return vec![0.0; counts.len()];
+            return (vec![0.0; counts.len()], 0);
         }
         let norm = 1.0 / (1.0 + max as f64).ln();
-        counts
+        let values = counts
             .par_iter()
             .map(|&c| ((1.0 + c as f64).ln() * norm) as f32)
-            .collect()
+            .collect();
+        (values, max as u64)
     }
 }

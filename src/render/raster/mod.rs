@@ -215,6 +215,23 @@ pub struct RenderStats {
     pub seconds: f64,
     /// Whether the time limit stopped the rounds before `min_hits` was reached.
     pub stopped_by_time: bool,
+    /// The share of the invariant measure μ the points were drawn from: Σ p_w over the
+    /// deep-zoom words the points were sent through ([`RenderConfig::deep_zoom`],
+    /// [`WindowWords::mass`]), 1 for the plain chaos game. A region of the window holds
+    /// about `sampled_mass × its points / points_generated` of μ (the words' images cover
+    /// all of μ in the window, and a point sent through them is distributed as μ there
+    /// divided by `sampled_mass`).
+    #[serde(default = "unit_mass")]
+    pub sampled_mass: f64,
+    /// Density mode: the largest hit count of a pixel, the top of the tone map (a pixel of
+    /// `c` hits has the value `ln(1 + c) / ln(1 + max_count)`); 0 in coverage mode.
+    #[serde(default)]
+    pub max_count: u64,
+}
+
+/// [`RenderStats::sampled_mass`] of a record written without it: the plain game's.
+fn unit_mass() -> f64 {
+    1.0
 }
 
 /// A rendered grey image, values in [0, 1] (1 = attractor), row 0 at the top (largest y).
@@ -455,8 +472,9 @@ pub(crate) trait Accumulator: Send {
     fn words_mut(&mut self) -> &mut [Self::Word];
     /// Records one point on each cell `offset mod 2^tile_shift` of a tile's words.
     fn write_tile(tile: &mut [Self::Word], offsets: &[u32]);
-    /// Final pixel values in [0, 1].
-    fn finish(self, width: u32, height: u32) -> Vec<f32>;
+    /// Final pixel values in [0, 1], and the largest count of a pixel (density; 0 for
+    /// coverage).
+    fn finish(self, width: u32, height: u32) -> (Vec<f32>, u64);
 }
 
 /// The evaluation renderer's speed used to estimate a job's time before it starts: points
@@ -566,6 +584,8 @@ pub fn render_with_isa<M: Map2>(
             rounds: counts.2,
             seconds: start.elapsed().as_secs_f64(),
             stopped_by_time: counts.3,
+            sampled_mass: words.as_ref().map_or(1.0, WindowWords::mass),
+            max_count: counts.4,
         },
     })
 }
@@ -595,7 +615,9 @@ fn deep_zoom_words<M: Map2>(
     }
 }
 
-type RoundCounts = (u64, u64, u32, bool);
+/// Points generated, points in the window, rounds, whether the time limit stopped them,
+/// the largest count of a pixel (density).
+type RoundCounts = (u64, u64, u32, bool, u64);
 
 fn run_rounds<M: Map2, A: Accumulator>(
     stream: &PointStream<'_, M>,
@@ -687,8 +709,8 @@ fn run_rounds<M: Map2, A: Accumulator>(
         b.into_inner().unwrap_or_else(|e| e.into_inner()).flush();
     });
     drop(tiles);
-    let values = acc.finish(cfg.width, cfg.height);
-    Ok((values, (generated, hits, rounds, by_time)))
+    let (values, max_count) = acc.finish(cfg.width, cfg.height);
+    Ok((values, (generated, hits, rounds, by_time, max_count)))
 }
 
 /// Points kept by trajectory `i` of `t` when a round has `total` points.
