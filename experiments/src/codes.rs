@@ -8,7 +8,10 @@ use ifslab::model::{IfsCode, library};
 /// A code from a file path or a built-in name.
 pub fn resolve_code(spec: &str) -> anyhow::Result<IfsCode> {
     let path = Path::new(spec);
-    if path.exists() {
+    // A folder named like a built-in code (the output of an earlier `invert maple -o maple`,
+    // or this run's own, made before the code is read) is no code file: the name wins.
+    let folder_named_like_a_code = path.is_dir() && library::builtin(spec).is_ok();
+    if path.exists() && !folder_named_like_a_code {
         return IfsCode::load(path).with_context(|| format!("loading code file {spec}"));
     }
     match library::builtin(spec) {

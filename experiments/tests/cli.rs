@@ -1380,3 +1380,32 @@ fn flame_learn_writes_its_run_folder_and_names_bad_variations() {
     let err = String::from_utf8_lossy(&res.stderr);
     assert!(err.contains("unknown variation `spherikal`"), "{err}");
 }
+
+/// A folder in the working directory named like a built-in code — here the run's own
+/// output folder — does not hide the code: `ifslab invert sierpinski -o sierpinski` inverts
+/// the built-in Sierpiński triangle.
+#[test]
+fn a_folder_named_like_a_built_in_code_does_not_hide_it() {
+    let tmp = tempfile::tempdir().unwrap();
+    std::fs::create_dir(tmp.path().join("sierpinski")).unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_ifslab"))
+        .current_dir(tmp.path())
+        .args([
+            "invert",
+            "sierpinski",
+            "--maps",
+            "3",
+            "--iters",
+            "2",
+            "--best-of",
+            "1",
+            "--size",
+            "32",
+            "-o",
+            "sierpinski",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(tmp.path().join("sierpinski/code.json").is_file());
+}
