@@ -35,33 +35,41 @@ fn render_tetrahedron(views: &Path) {
     assert!(o.status.success(), "{}", text(&o));
 }
 
+/// How views drawn by the library's own blurred splat are fitted: at 1×, σ 1.5 → 0.8, 100
+/// trajectories, without the ink guard (the defaults suit crisp views from elsewhere); what
+/// `experiments/configs/image3d_tetrahedron.toml` sets.
+const OWN_VIEWS: [&str; 8] = [
+    "--supersample",
+    "1",
+    "--sigma-final",
+    "0.8",
+    "--trajectories",
+    "100",
+    "--ink",
+    "0",
+];
+
 #[test]
 fn the_tetrahedron_is_recovered_from_eight_views() {
     let tmp = tempfile::tempdir().unwrap();
     let views = tmp.path().join("views");
     let out = tmp.path().join("out");
     render_tetrahedron(&views);
-    let o = ifslab(&[
-        "invert3d",
-        views.to_str().unwrap(),
-        "--maps",
-        "4",
-        "-o",
-        out.to_str().unwrap(),
-        "--truth",
-        "tetrahedron",
-        // Views drawn by the library's own blurred splat: fitted at 1×, σ 1.5 → 0.8, 100
-        // trajectories, without the ink guard (the defaults suit crisp views from
-        // elsewhere).
-        "--supersample",
-        "1",
-        "--sigma-final",
-        "0.8",
-        "--trajectories",
-        "100",
-        "--ink",
-        "0",
-    ]);
+    let o = ifslab(
+        &[
+            "invert3d",
+            views.to_str().unwrap(),
+            "--maps",
+            "4",
+            "-o",
+            out.to_str().unwrap(),
+            "--truth",
+            "tetrahedron",
+        ]
+        .into_iter()
+        .chain(OWN_VIEWS)
+        .collect::<Vec<_>>(),
+    );
     assert!(o.status.success(), "{}", text(&o));
     println!("{}", text(&o));
     for f in [
@@ -310,26 +318,23 @@ fn a_config_runs_what_the_flags_run_and_old_folders_still_resume() {
     ]);
     assert!(o.status.success(), "{}", text(&o));
     assert!(text(&o).contains("voxel IoU baseline"), "{}", text(&o));
-    let o = ifslab(&[
-        "invert3d",
-        views.to_str().unwrap(),
-        "--maps",
-        "4",
-        "--iters",
-        "24",
-        "--truth",
-        "tetrahedron",
-        "--supersample",
-        "1",
-        "--sigma-final",
-        "0.8",
-        "--trajectories",
-        "100",
-        "--ink",
-        "0",
-        "-o",
-        by_flags.to_str().unwrap(),
-    ]);
+    let o = ifslab(
+        &[
+            "invert3d",
+            views.to_str().unwrap(),
+            "--maps",
+            "4",
+            "--iters",
+            "24",
+            "--truth",
+            "tetrahedron",
+            "-o",
+            by_flags.to_str().unwrap(),
+        ]
+        .into_iter()
+        .chain(OWN_VIEWS)
+        .collect::<Vec<_>>(),
+    );
     assert!(o.status.success(), "{}", text(&o));
     let read = |dir: &Path, f: &str| std::fs::read_to_string(dir.join(f)).unwrap();
     assert_eq!(read(&by_config, "code.json"), read(&by_flags, "code.json"));
