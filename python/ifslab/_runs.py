@@ -29,7 +29,7 @@ class Result:
 
     #: The run folder (``config.toml``, ``summary.json``, ``log.csv``, pictures, …).
     dir: Path
-    #: The problem (``"image"``, ``"points"``, ``"sdf"``, ``"flame"``, ``"texture"``).
+    #: The problem (``"image"``, ``"points"``, ``"sdf"``, ``"flame"``, ``"texture"``, ``"image3d"``).
     problem: str
     #: The line the command line prints at the end.
     headline: str

@@ -161,3 +161,22 @@ def test_a_flame_is_learned_from_a_picture(tmp_path, repo):
     assert (tmp_path / "flame" / "learned.flame").is_file()
     rendered = ifslab.flame.render(tmp_path / "flame" / "learned.flame", size=(24, 24), quality=2)
     assert rendered.shape == (24, 24, 4)
+
+
+def test_a_multi_view_run_goes_through_the_same_config(tmp_path, repo):
+    # problem = "image3d" as a dict: the shipped tetrahedron views, a short fit.
+    config = {
+        "problem": "image3d",
+        "views": str(repo / "data" / "views" / "tetrahedron"),
+        "truth": "tetrahedron",
+        "maps": 4,
+        "iterations": 6,
+        "ink": 0.0,
+        "render": {"supersample": 1, "sigma_final": 0.8, "trajectories": 40},
+    }
+    result = ifslab.run(config, tmp_path / "tet")
+    assert result.problem == "image3d"
+    assert result.summary["iterations"] == 6
+    assert result.summary["fit"]["voxel_iou"] > 0.0
+    assert (tmp_path / "tet" / "points.ply").is_file()
+    assert ifslab.resolve_config(config)["views"].endswith("tetrahedron")
