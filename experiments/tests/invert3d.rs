@@ -343,9 +343,24 @@ fn a_config_runs_what_the_flags_run_and_old_folders_still_resume() {
     assert_eq!(cfg["problem"].as_str(), Some("image3d"));
     assert!(cfg["views"].as_str().unwrap().ends_with("tetrahedron"));
 
-    // The config's folder, its outputs removed, resumes through `ifslab run --resume`.
+    // The config's folder, its outputs removed, resumes through `ifslab run --resume` —
+    // with its own config, not another.
     let code = read(&by_config, "code.json");
     std::fs::remove_file(by_config.join("code.json")).unwrap();
+    let o = ifslab(&[
+        "run",
+        config.to_str().unwrap(),
+        "--set",
+        "iterations=25",
+        "--resume",
+        "-o",
+        by_config.to_str().unwrap(),
+    ]);
+    assert!(
+        !o.status.success() && text(&o).contains("holds a run of another config"),
+        "{}",
+        text(&o)
+    );
     let o = ifslab(&[
         "run",
         config.to_str().unwrap(),
@@ -358,12 +373,19 @@ fn a_config_runs_what_the_flags_run_and_old_folders_still_resume() {
     assert!(o.status.success(), "{}", text(&o));
     assert_eq!(read(&by_config, "code.json"), code);
 
-    // The same folder as the command wrote them before: the inputs' keys out of the config.
+    // The same folder as the command wrote them before: the inputs' keys out of the config
+    // and in `invert3d.json` beside the views' fingerprint.
     let mut old = cfg.clone();
+    let mut inputs: serde_json::Value =
+        serde_json::from_str(&read(&by_flags, "invert3d.json")).unwrap();
+    for k in ["views", "truth"] {
+        inputs[k] = old[k].as_str().unwrap().into();
+    }
     for k in ["problem", "views", "truth", "score_views"] {
         old.remove(k);
     }
     std::fs::write(by_flags.join("config.toml"), toml::to_string(&old).unwrap()).unwrap();
+    std::fs::write(by_flags.join("invert3d.json"), inputs.to_string()).unwrap();
     std::fs::remove_file(by_flags.join("code.json")).unwrap();
     let o = ifslab(&["invert3d", "--resume", by_flags.to_str().unwrap()]);
     assert!(o.status.success(), "{}", text(&o));

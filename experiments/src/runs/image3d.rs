@@ -62,17 +62,21 @@ pub struct Image3dRunConfig {
     pub fit: Image3dConfig,
 }
 
-/// What [`INPUTS_FILE`] holds (the keys of the runs made before configs named their views
-/// keep them here too; [`load_run`] reads such a folder).
+/// What [`INPUTS_FILE`] holds: the views' fingerprint. A run made before configs named
+/// their views kept its inputs here as well (its `config.toml` has the fit's keys alone);
+/// [`load_run`] reads them back. A new run's inputs are in its config.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 struct Inputs {
-    /// The views folder (absolute).
-    views: PathBuf,
     /// [`Views::digest`] of the views when the run started.
     views_digest: String,
-    /// The truth (a file's absolute path, or a built-in name).
+    /// An older run's views folder (absolute).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    views: Option<PathBuf>,
+    /// An older run's truth (a file's absolute path, or a built-in name).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     truth: Option<String>,
-    /// The views to score on (absolute).
+    /// An older run's views to score on (absolute).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     score_views: Option<PathBuf>,
 }
 
@@ -160,6 +164,20 @@ impl Image3dRunConfig {
         Ok(c)
     }
 
+    /// Whether `other` is the same run: equal but for where it writes and how often it
+    /// checkpoints (neither changes a bit of the result).
+    fn same_run(&self, other: &Self) -> bool {
+        let plain = |c: &Self| Self {
+            output: None,
+            fit: Image3dConfig {
+                checkpoint_every: 0,
+                ..c.fit.clone()
+            },
+            ..c.clone()
+        };
+        plain(self) == plain(other)
+    }
+
     /// The config as a TOML table without its `problem` key: the fit's keys and the inputs'.
     pub fn to_table(&self) -> anyhow::Result<toml::Table> {
         let mut t = toml::Table::try_from(&self.fit).context("writing the image3d config")?;
@@ -232,16 +250,26 @@ pub fn run(
         None => None,
     };
     let _lock = lock_run_dir(dir)?;
+    let digest = views.digest();
     if resume {
+        if !load_run(dir)?.with_absolute_paths()?.same_run(&cfg) {
+            bail!(
+                "{} holds a run of another config ({CONFIG_FILE}); a resumed run continues its \
+                 own (resume it with the config it started with, or `ifslab invert3d --resume \
+                 {}`)",
+                dir.display(),
+                dir.display()
+            );
+        }
         let inputs = read_inputs(dir)?;
-        if views.digest() != inputs.views_digest {
+        if digest != inputs.views_digest {
             bail!(
                 "the views in {} changed since the run in {} started (their fingerprint was \
                  {}, now {}); a resumed run must fit the pictures it started on",
                 cfg.views.display(),
                 dir.display(),
                 inputs.views_digest,
-                views.digest()
+                digest
             );
         }
     } else {
@@ -260,10 +288,10 @@ pub fn run(
             toml::to_string_pretty(&resolved)?.as_bytes(),
         )?;
         let inputs = Inputs {
-            views: cfg.views.clone(),
-            views_digest: views.digest(),
-            truth: cfg.truth.clone(),
-            score_views: cfg.score_views.clone(),
+            views_digest: digest,
+            views: None,
+            truth: None,
+            score_views: None,
         };
         ifslab::io::write_atomic(
             &dir.join(INPUTS_FILE),
@@ -344,8 +372,15 @@ pub fn load_run(dir: &Path) -> anyhow::Result<Image3dRunConfig> {
         )
     })?;
     let inputs = read_inputs(dir)?;
+    let views = inputs.views.ok_or_else(|| {
+        anyhow!(
+            "{}: neither its {CONFIG_FILE} nor its {INPUTS_FILE} names the views it fits, so \
+             it cannot resume",
+            dir.display()
+        )
+    })?;
     Ok(Image3dRunConfig {
-        views: inputs.views,
+        views,
         truth: inputs.truth,
         score_views: inputs.score_views,
         output: None,
