@@ -492,6 +492,10 @@ pub struct CodeTable {
     pub log_scales: Vec<f64>,
     /// ln v_{|c|} + Σ_j ln w_{c_j}.
     pub log_priors: Vec<f64>,
+    /// Σ_j ln w_{c_j} (the prior within its depth).
+    pub log_word_priors: Vec<f64>,
+    /// ln v_d for d = 0..=D (floored as in `log_priors`).
+    pub log_depth_weights: Vec<f64>,
     /// R_c row-major for codes of depth < D (the prefixes the M-step needs); empty unless asked.
     pub rotations: Vec<f64>,
 }
@@ -576,7 +580,7 @@ impl CodeTable {
                 }
             }
         }
-        let mut log_priors = code_w;
+        let mut log_priors = code_w.clone();
         for d in 0..=depth {
             for lp in &mut log_priors[offsets[d]..offsets[d + 1]] {
                 *lp += log_v[d];
@@ -590,6 +594,8 @@ impl CodeTable {
             means,
             log_scales,
             log_priors,
+            log_word_priors: code_w,
+            log_depth_weights: log_v,
             rotations,
         }
     }
