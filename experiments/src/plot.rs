@@ -7,6 +7,7 @@ use std::path::Path;
 use std::sync::Once;
 
 use anyhow::Context;
+use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::FontStyle;
 
@@ -51,51 +52,51 @@ pub fn line_chart(
     let (x0, x1) = min_max(all.iter().map(|p| p.0));
     let (y0, y1) = min_max(all.iter().map(|p| p.1));
     let pad = ((y1 - y0) * 0.05).max(1e-9);
-    let root = BitMapBackend::new(path, (900, 560)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let y_desc = if log_y {
-        format!("log10 {y_label}")
-    } else {
-        y_label.to_owned()
-    };
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 24))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(70)
-        .build_cartesian_2d(x0..x1.max(x0 + 1e-9), (y0 - pad)..(y1 + pad))?;
-    chart
-        .configure_mesh()
-        .x_desc(x_label)
-        .y_desc(y_desc)
-        .label_style(("sans-serif", 14))
-        .draw()?;
-    for (i, s) in series.iter().enumerate() {
-        let color = Palette99::pick(i).to_rgba();
+    plot_png(path, (900, 560), |root| {
+        root.fill(&WHITE)?;
+        let y_desc = if log_y {
+            format!("log10 {y_label}")
+        } else {
+            y_label.to_owned()
+        };
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 24))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(70)
+            .build_cartesian_2d(x0..x1.max(x0 + 1e-9), (y0 - pad)..(y1 + pad))?;
         chart
-            .draw_series(LineSeries::new(
-                s.points
-                    .iter()
-                    .map(|&(x, y)| (x, tf(y)))
-                    .filter(|(x, y)| x.is_finite() && y.is_finite()),
-                color.stroke_width(2),
-            ))?
-            .label(s.name)
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
-            });
-    }
-    if series.len() > 1 {
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 14))
+            .configure_mesh()
+            .x_desc(x_label)
+            .y_desc(y_desc)
+            .label_style(("sans-serif", 14))
             .draw()?;
-    }
-    root.present()
-        .with_context(|| format!("writing {}", path.display()))?;
-    Ok(())
+        for (i, s) in series.iter().enumerate() {
+            let color = Palette99::pick(i).to_rgba();
+            chart
+                .draw_series(LineSeries::new(
+                    s.points
+                        .iter()
+                        .map(|&(x, y)| (x, tf(y)))
+                        .filter(|(x, y)| x.is_finite() && y.is_finite()),
+                    color.stroke_width(2),
+                ))?
+                .label(s.name)
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+                });
+        }
+        if series.len() > 1 {
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .label_font(("sans-serif", 14))
+                .draw()?;
+        }
+        root.present()?;
+        Ok(())
+    })
 }
 
 /// A 2-D scatter of several point sets, each in its own colour.
@@ -114,38 +115,38 @@ pub fn scatter(
     let (y0, y1) = min_max(all.iter().map(|p| p.1));
     let span = (x1 - x0).max(y1 - y0).max(1e-9) * 0.55;
     let (cx, cy) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
-    let root = BitMapBackend::new(path, (720, 760)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 22))
-        .margin(12)
-        .x_label_area_size(30)
-        .y_label_area_size(50)
-        .build_cartesian_2d((cx - span)..(cx + span), (cy - span)..(cy + span))?;
-    chart
-        .configure_mesh()
-        .label_style(("sans-serif", 12))
-        .draw()?;
-    for (i, s) in sets.iter().enumerate() {
-        let color = Palette99::pick(i).mix(0.6);
+    plot_png(path, (720, 760), |root| {
+        root.fill(&WHITE)?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 22))
+            .margin(12)
+            .x_label_area_size(30)
+            .y_label_area_size(50)
+            .build_cartesian_2d((cx - span)..(cx + span), (cy - span)..(cy + span))?;
         chart
-            .draw_series(
-                s.points
-                    .iter()
-                    .map(|&(x, y)| Circle::new((x, y), point_size, color.filled())),
-            )?
-            .label(s.name)
-            .legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
-    }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 14))
-        .draw()?;
-    root.present()
-        .with_context(|| format!("writing {}", path.display()))?;
-    Ok(())
+            .configure_mesh()
+            .label_style(("sans-serif", 12))
+            .draw()?;
+        for (i, s) in sets.iter().enumerate() {
+            let color = Palette99::pick(i).mix(0.6);
+            chart
+                .draw_series(
+                    s.points
+                        .iter()
+                        .map(|&(x, y)| Circle::new((x, y), point_size, color.filled())),
+                )?
+                .label(s.name)
+                .legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 14))
+            .draw()?;
+        root.present()?;
+        Ok(())
+    })
 }
 
 /// A metric per category (the values of a sweep axis): every run as a dot, the mean of
@@ -172,50 +173,50 @@ pub fn category_chart(
     let n = categories.len();
     // Room for labels like `random_3000it/hybrid` under each bar.
     let width = (160 + 150 * n as u32).clamp(520, 2600);
-    let root = BitMapBackend::new(path, (width, 520)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 22))
-        .margin(12)
-        .x_label_area_size(60)
-        .y_label_area_size(70)
-        .build_cartesian_2d(-0.5f64..(n as f64 - 0.5), lo..(y1 + pad))?;
-    let cats = categories.to_vec();
-    chart
-        .configure_mesh()
-        .disable_x_mesh()
-        .x_labels(n)
-        .x_label_formatter(&move |x: &f64| {
-            let k = x.round();
-            if (x - k).abs() < 1e-6 && k >= 0.0 && (k as usize) < cats.len() {
-                cats[k as usize].clone()
-            } else {
-                String::new()
+    plot_png(path, (width, 520), |root| {
+        root.fill(&WHITE)?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 22))
+            .margin(12)
+            .x_label_area_size(60)
+            .y_label_area_size(70)
+            .build_cartesian_2d(-0.5f64..(n as f64 - 0.5), lo..(y1 + pad))?;
+        let cats = categories.to_vec();
+        chart
+            .configure_mesh()
+            .disable_x_mesh()
+            .x_labels(n)
+            .x_label_formatter(&move |x: &f64| {
+                let k = x.round();
+                if (x - k).abs() < 1e-6 && k >= 0.0 && (k as usize) < cats.len() {
+                    cats[k as usize].clone()
+                } else {
+                    String::new()
+                }
+            })
+            .y_desc(y_label)
+            .label_style(("sans-serif", 13))
+            .draw()?;
+        for c in 0..n {
+            let vs: Vec<f64> = finite.iter().filter(|p| p.0 == c).map(|p| p.1).collect();
+            if vs.is_empty() {
+                continue;
             }
-        })
-        .y_desc(y_label)
-        .label_style(("sans-serif", 13))
-        .draw()?;
-    for c in 0..n {
-        let vs: Vec<f64> = finite.iter().filter(|p| p.0 == c).map(|p| p.1).collect();
-        if vs.is_empty() {
-            continue;
+            let mean = vs.iter().sum::<f64>() / vs.len() as f64;
+            let x = c as f64;
+            chart.draw_series(std::iter::once(Rectangle::new(
+                [(x - 0.3, lo), (x + 0.3, mean)],
+                Palette99::pick(c).mix(0.35).filled(),
+            )))?;
         }
-        let mean = vs.iter().sum::<f64>() / vs.len() as f64;
-        let x = c as f64;
-        chart.draw_series(std::iter::once(Rectangle::new(
-            [(x - 0.3, lo), (x + 0.3, mean)],
-            Palette99::pick(c).mix(0.35).filled(),
-        )))?;
-    }
-    chart.draw_series(finite.iter().enumerate().map(|(i, &(c, v))| {
-        // A small deterministic spread so that equal values stay visible.
-        let dx = ((i % 5) as f64 - 2.0) * 0.05;
-        Circle::new((c as f64 + dx, v), 4, BLACK.filled())
-    }))?;
-    root.present()
-        .with_context(|| format!("writing {}", path.display()))?;
-    Ok(())
+        chart.draw_series(finite.iter().enumerate().map(|(i, &(c, v))| {
+            // A small deterministic spread so that equal values stay visible.
+            let dx = ((i % 5) as f64 - 2.0) * 0.05;
+            Circle::new((c as f64 + dx, v), 4, BLACK.filled())
+        }))?;
+        root.present()?;
+        Ok(())
+    })
 }
 
 /// One heat-map panel: values on a row-major `ys.len() × xs.len()` grid (rows along y).
@@ -243,69 +244,69 @@ pub fn heatmaps(
         !panels.is_empty() && xs.len() > 1 && ys.len() > 1,
         "nothing to plot"
     );
-    let root = BitMapBackend::new(path, (620 * panels.len() as u32, 640)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let root = root.titled(title, ("sans-serif", 24))?;
-    let (hx, hy) = (0.5 * (xs[1] - xs[0]).abs(), 0.5 * (ys[1] - ys[0]).abs());
-    for (area, panel) in root.split_evenly((1, panels.len())).iter().zip(panels) {
-        anyhow::ensure!(
-            panel.values.len() == xs.len() * ys.len(),
-            "grid size mismatch"
-        );
-        let logs: Vec<f64> = panel
-            .values
-            .iter()
-            .map(|&v| if v > 0.0 { v.log10() } else { f64::NAN })
-            .collect();
-        let (lo, hi) = min_max(logs.iter().copied().filter(|v| v.is_finite()));
-        let span = if hi > lo { hi - lo } else { 1.0 };
-        let mut chart = ChartBuilder::on(area)
-            .caption(
-                format!("{}  (log10: {lo:.2} … {hi:.2})", panel.title),
-                ("sans-serif", 16),
-            )
-            .margin(10)
-            .x_label_area_size(36)
-            .y_label_area_size(44)
-            .build_cartesian_2d(
-                (xs[0] - hx)..(xs[xs.len() - 1] + hx),
-                (ys[0] - hy)..(ys[ys.len() - 1] + hy),
-            )?;
-        chart
-            .configure_mesh()
-            .disable_mesh()
-            .x_desc(axes.0)
-            .y_desc(axes.1)
-            .label_style(("sans-serif", 12))
-            .draw()?;
-        chart.draw_series(ys.iter().enumerate().flat_map(|(r, &y)| {
-            let logs = &logs;
-            xs.iter().enumerate().map(move |(c, &x)| {
-                let v = logs[r * xs.len() + c];
-                let color = if v.is_finite() {
-                    ramp((v - lo) / span)
-                } else {
-                    RGBColor(150, 150, 150)
-                };
-                Rectangle::new([(x - hx, y - hy), (x + hx, y + hy)], color.filled())
-            })
-        }))?;
-        for &(label, x, y) in marks {
-            chart.draw_series(std::iter::once(Cross::new(
-                (x, y),
-                7,
-                WHITE.stroke_width(2),
-            )))?;
-            chart.draw_series(std::iter::once(Text::new(
-                label.to_owned(),
-                (x + hx, y + hy),
-                ("sans-serif", 14).into_font().color(&WHITE),
-            )))?;
+    plot_png(path, (620 * panels.len() as u32, 640), |root| {
+        root.fill(&WHITE)?;
+        let root = root.titled(title, ("sans-serif", 24))?;
+        let (hx, hy) = (0.5 * (xs[1] - xs[0]).abs(), 0.5 * (ys[1] - ys[0]).abs());
+        for (area, panel) in root.split_evenly((1, panels.len())).iter().zip(panels) {
+            anyhow::ensure!(
+                panel.values.len() == xs.len() * ys.len(),
+                "grid size mismatch"
+            );
+            let logs: Vec<f64> = panel
+                .values
+                .iter()
+                .map(|&v| if v > 0.0 { v.log10() } else { f64::NAN })
+                .collect();
+            let (lo, hi) = min_max(logs.iter().copied().filter(|v| v.is_finite()));
+            let span = if hi > lo { hi - lo } else { 1.0 };
+            let mut chart = ChartBuilder::on(area)
+                .caption(
+                    format!("{}  (log10: {lo:.2} … {hi:.2})", panel.title),
+                    ("sans-serif", 16),
+                )
+                .margin(10)
+                .x_label_area_size(36)
+                .y_label_area_size(44)
+                .build_cartesian_2d(
+                    (xs[0] - hx)..(xs[xs.len() - 1] + hx),
+                    (ys[0] - hy)..(ys[ys.len() - 1] + hy),
+                )?;
+            chart
+                .configure_mesh()
+                .disable_mesh()
+                .x_desc(axes.0)
+                .y_desc(axes.1)
+                .label_style(("sans-serif", 12))
+                .draw()?;
+            chart.draw_series(ys.iter().enumerate().flat_map(|(r, &y)| {
+                let logs = &logs;
+                xs.iter().enumerate().map(move |(c, &x)| {
+                    let v = logs[r * xs.len() + c];
+                    let color = if v.is_finite() {
+                        ramp((v - lo) / span)
+                    } else {
+                        RGBColor(150, 150, 150)
+                    };
+                    Rectangle::new([(x - hx, y - hy), (x + hx, y + hy)], color.filled())
+                })
+            }))?;
+            for &(label, x, y) in marks {
+                chart.draw_series(std::iter::once(Cross::new(
+                    (x, y),
+                    7,
+                    WHITE.stroke_width(2),
+                )))?;
+                chart.draw_series(std::iter::once(Text::new(
+                    label.to_owned(),
+                    (x + hx, y + hy),
+                    ("sans-serif", 14).into_font().color(&WHITE),
+                )))?;
+            }
         }
-    }
-    root.present()
-        .with_context(|| format!("writing {}", path.display()))?;
-    Ok(())
+        root.present()?;
+        Ok(())
+    })
 }
 
 /// A perceptually ordered dark-blue → green → yellow ramp for `t` in [0, 1].
@@ -353,51 +354,76 @@ pub fn vector_fields(
 ) -> anyhow::Result<()> {
     ensure_font();
     anyhow::ensure!(!panels.is_empty(), "nothing to plot");
-    let root = BitMapBackend::new(path, (520 * panels.len() as u32, 560)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let root = root.titled(title, ("sans-serif", 22))?;
-    let ((x0, x1), (y0, y1)) = window;
-    for (area, panel) in root.split_evenly((1, panels.len())).iter().zip(panels) {
-        let colour = Palette99::pick(panel.colour).to_rgba();
-        let mut chart = ChartBuilder::on(area)
-            .caption(panel.title, ("sans-serif", 16))
-            .margin(10)
-            .x_label_area_size(30)
-            .y_label_area_size(44)
-            .build_cartesian_2d(x0..x1, y0..y1)?;
-        chart
-            .configure_mesh()
-            .disable_mesh()
-            .label_style(("sans-serif", 12))
-            .draw()?;
-        for &(x, y, dx, dy) in panel.arrows {
-            let n = dx.hypot(dy);
-            if !(n.is_finite() && n > 0.0) {
-                chart.draw_series(std::iter::once(Circle::new((x, y), 1, colour.filled())))?;
-                continue;
+    plot_png(path, (520 * panels.len() as u32, 560), |root| {
+        root.fill(&WHITE)?;
+        let root = root.titled(title, ("sans-serif", 22))?;
+        let ((x0, x1), (y0, y1)) = window;
+        for (area, panel) in root.split_evenly((1, panels.len())).iter().zip(panels) {
+            let colour = Palette99::pick(panel.colour).to_rgba();
+            let mut chart = ChartBuilder::on(area)
+                .caption(panel.title, ("sans-serif", 16))
+                .margin(10)
+                .x_label_area_size(30)
+                .y_label_area_size(44)
+                .build_cartesian_2d(x0..x1, y0..y1)?;
+            chart
+                .configure_mesh()
+                .disable_mesh()
+                .label_style(("sans-serif", 12))
+                .draw()?;
+            for &(x, y, dx, dy) in panel.arrows {
+                let n = dx.hypot(dy);
+                if !(n.is_finite() && n > 0.0) {
+                    chart.draw_series(std::iter::once(Circle::new((x, y), 1, colour.filled())))?;
+                    continue;
+                }
+                let head = (x + arrow * dx / n, y + arrow * dy / n);
+                chart.draw_series(std::iter::once(PathElement::new(
+                    vec![(x, y), head],
+                    colour.stroke_width(2),
+                )))?;
+                chart.draw_series(std::iter::once(Circle::new(head, 2, colour.filled())))?;
             }
-            let head = (x + arrow * dx / n, y + arrow * dy / n);
-            chart.draw_series(std::iter::once(PathElement::new(
-                vec![(x, y), head],
-                colour.stroke_width(2),
-            )))?;
-            chart.draw_series(std::iter::once(Circle::new(head, 2, colour.filled())))?;
+            for &(label, x, y) in marks {
+                chart.draw_series(std::iter::once(Cross::new(
+                    (x, y),
+                    7,
+                    BLACK.stroke_width(2),
+                )))?;
+                chart.draw_series(std::iter::once(Text::new(
+                    label.to_owned(),
+                    (x, y),
+                    ("sans-serif", 14),
+                )))?;
+            }
         }
-        for &(label, x, y) in marks {
-            chart.draw_series(std::iter::once(Cross::new(
-                (x, y),
-                7,
-                BLACK.stroke_width(2),
-            )))?;
-            chart.draw_series(std::iter::once(Text::new(
-                label.to_owned(),
-                (x, y),
-                ("sans-serif", 14),
-            )))?;
-        }
-    }
-    root.present()
-        .with_context(|| format!("writing {}", path.display()))?;
+        root.present()?;
+        Ok(())
+    })
+}
+
+/// Draws a figure of `size` pixels with `draw` (on a white canvas) and writes it to `path`
+/// as a PNG, atomically, at the encoder's best compression: plots are mostly flat colour,
+/// and plotters' own writer leaves them 3–4 times larger.
+fn plot_png(
+    path: &Path,
+    size: (u32, u32),
+    draw: impl FnOnce(DrawingArea<BitMapBackend<'_>, Shift>) -> anyhow::Result<()>,
+) -> anyhow::Result<()> {
+    let mut buf = vec![255u8; size.0 as usize * size.1 as usize * 3];
+    draw(BitMapBackend::with_buffer(&mut buf, size).into_drawing_area())?;
+    write_rgb_png(path, size, &buf).with_context(|| format!("writing {}", path.display()))
+}
+
+/// Writes an RGB8 buffer as a PNG at the best compression, atomically (figures and reports;
+/// renders keep the fast encoder).
+pub fn write_rgb_png(path: &Path, (w, h): (u32, u32), rgb: &[u8]) -> anyhow::Result<()> {
+    use image::ImageEncoder;
+    use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+    let mut bytes = Vec::new();
+    PngEncoder::new_with_quality(&mut bytes, CompressionType::Best, FilterType::Adaptive)
+        .write_image(rgb, w, h, image::ExtendedColorType::Rgb8)?;
+    ifslab::io::write_atomic(path, &bytes)?;
     Ok(())
 }
 

@@ -730,10 +730,7 @@ pub fn zoom_strip(
         }
         root.present()?;
     }
-    let img = image::RgbImage::from_raw(w, h, buf).context("strip buffer")?;
-    let mut bytes = std::io::Cursor::new(Vec::new());
-    img.write_to(&mut bytes, image::ImageFormat::Png)?;
-    ifslab::io::write_atomic(path, bytes.get_ref())?;
+    crate::plot::write_rgb_png(path, (w, h), &buf)?;
     Ok(())
 }
 

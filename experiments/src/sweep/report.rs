@@ -427,9 +427,6 @@ fn picture_grid(c: &Collected, path: &Path, max: usize) -> anyhow::Result<Option
         }
         root.present()?;
     }
-    let img = RgbImage::from_raw(w, h, buf).context("picture grid buffer")?;
-    let mut bytes = std::io::Cursor::new(Vec::new());
-    img.write_to(&mut bytes, image::ImageFormat::Png)?;
-    ifslab::io::write_atomic(path, bytes.get_ref())?;
+    crate::plot::write_rgb_png(path, (w, h), &buf)?;
     Ok(path.file_name().map(|f| f.to_string_lossy().into_owned()))
 }
