@@ -94,7 +94,6 @@ pub fn line_chart(
                 .label_font(("sans-serif", 14))
                 .draw()?;
         }
-        root.present()?;
         Ok(())
     })
 }
@@ -144,7 +143,6 @@ pub fn scatter(
             .border_style(BLACK)
             .label_font(("sans-serif", 14))
             .draw()?;
-        root.present()?;
         Ok(())
     })
 }
@@ -214,7 +212,6 @@ pub fn category_chart(
             let dx = ((i % 5) as f64 - 2.0) * 0.05;
             Circle::new((c as f64 + dx, v), 4, BLACK.filled())
         }))?;
-        root.present()?;
         Ok(())
     })
 }
@@ -304,7 +301,6 @@ pub fn heatmaps(
                 )))?;
             }
         }
-        root.present()?;
         Ok(())
     })
 }
@@ -397,7 +393,6 @@ pub fn vector_fields(
                 )))?;
             }
         }
-        root.present()?;
         Ok(())
     })
 }
@@ -408,10 +403,14 @@ pub fn vector_fields(
 fn plot_png(
     path: &Path,
     size: (u32, u32),
-    draw: impl FnOnce(DrawingArea<BitMapBackend<'_>, Shift>) -> anyhow::Result<()>,
+    draw: impl FnOnce(&DrawingArea<BitMapBackend<'_>, Shift>) -> anyhow::Result<()>,
 ) -> anyhow::Result<()> {
     let mut buf = vec![255u8; size.0 as usize * size.1 as usize * 3];
-    draw(BitMapBackend::with_buffer(&mut buf, size).into_drawing_area())?;
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, size).into_drawing_area();
+        draw(&root)?;
+        root.present()?;
+    }
     write_rgb_png(path, size, &buf).with_context(|| format!("writing {}", path.display()))
 }
 
