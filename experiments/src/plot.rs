@@ -59,7 +59,7 @@ pub fn line_chart(
         } else {
             y_label.to_owned()
         };
-        let mut chart = ChartBuilder::on(&root)
+        let mut chart = ChartBuilder::on(root)
             .caption(title, ("sans-serif", 24))
             .margin(12)
             .x_label_area_size(40)
@@ -116,7 +116,7 @@ pub fn scatter(
     let (cx, cy) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
     plot_png(path, (720, 760), |root| {
         root.fill(&WHITE)?;
-        let mut chart = ChartBuilder::on(&root)
+        let mut chart = ChartBuilder::on(root)
             .caption(title, ("sans-serif", 22))
             .margin(12)
             .x_label_area_size(30)
@@ -173,7 +173,7 @@ pub fn category_chart(
     let width = (160 + 150 * n as u32).clamp(520, 2600);
     plot_png(path, (width, 520), |root| {
         root.fill(&WHITE)?;
-        let mut chart = ChartBuilder::on(&root)
+        let mut chart = ChartBuilder::on(root)
             .caption(title, ("sans-serif", 22))
             .margin(12)
             .x_label_area_size(60)
