@@ -121,7 +121,7 @@ pub struct Args {
     #[arg(long, conflicts_with_all = ["preselect_schedule", "preselect_by", "reorient", "reorient_every", "no_recentre", "update", "no_reflections", "no_words", "trim_outliers"])]
     pub paper: bool,
     /// Independent runs; the one with the best held-out log-likelihood is kept [default: 4
-    /// for up to four maps, else 1; with --paper 1].
+    /// for up to five maps, else 1; with --paper 1].
     #[arg(long)]
     pub runs: Option<usize>,
     /// Fraction of the points held out for evaluation.
