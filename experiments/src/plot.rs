@@ -8,6 +8,7 @@ use std::sync::Once;
 
 use anyhow::Context;
 use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use plotters::style::FontStyle;
 
@@ -87,12 +88,7 @@ pub fn line_chart(
                 });
         }
         if series.len() > 1 {
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .label_font(("sans-serif", 14))
-                .draw()?;
+            legend(&mut chart)?;
         }
         Ok(())
     })
@@ -137,12 +133,7 @@ pub fn scatter(
                 .label(s.name)
                 .legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
         }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 14))
-            .draw()?;
+        legend(&mut chart)?;
         Ok(())
     })
 }
@@ -423,6 +414,19 @@ pub fn write_rgb_png(path: &Path, (w, h): (u32, u32), rgb: &[u8]) -> anyhow::Res
     PngEncoder::new_with_quality(&mut bytes, CompressionType::Best, FilterType::Adaptive)
         .write_image(rgb, w, h, image::ExtendedColorType::Rgb8)?;
     ifslab::io::write_atomic(path, &bytes)?;
+    Ok(())
+}
+
+/// The series' labels in a box at the top right of a chart of two real axes.
+fn legend<'a>(
+    chart: &mut ChartContext<'a, BitMapBackend<'a>, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+) -> anyhow::Result<()> {
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .draw()?;
     Ok(())
 }
 

@@ -216,7 +216,8 @@ fn log_joints<const H: usize>(
         d2
     };
     // A first largest term: the root, then down the nearest child at every depth.
-    let mut max = t.base[0] - dist2(0) * t.half_inv_var[0];
+    let root = t.base[0] - dist2(0) * t.half_inv_var[0];
+    let mut max = root;
     let mut at = 0; // index within its depth
     for d in 1..=depth {
         let mut best = (f64::INFINITY, 0);
@@ -245,8 +246,7 @@ fn log_joints<const H: usize>(
     let Scratch { open, next, terms } = scratch;
     terms.clear();
     open.clear();
-    let l = t.base[0] - dist2(0) * t.half_inv_var[0];
-    terms.push((0, l));
+    terms.push((0, root));
     open.push(0);
     for d in 1..=depth {
         next.clear();
