@@ -196,7 +196,7 @@ impl RunConfig {
             RunConfig::Texture(c) => toml::Table::try_from(c.resolved()?)?,
             RunConfig::Sdf(c) => toml::Table::try_from(c.with_absolute_paths()?)?,
             RunConfig::Flame(c) => toml::Table::try_from(c.with_absolute_paths()?)?,
-            RunConfig::Image3d(c) => c.with_absolute_paths()?.to_table()?,
+            RunConfig::Image3d(c) => return c.resolved_table(),
         };
         let mut t = toml::Table::new();
         t.insert(PROBLEM_KEY.into(), self.problem().into());

@@ -35,10 +35,14 @@ use crate::progress::{Progress, ProgressObserver};
 use crate::runs::inversion::CONFIG_FILE;
 use crate::runs::legs::LegProgress;
 use crate::runs::lock::lock_run_dir;
+use crate::runs::table::{PROBLEM_KEY, problem_of, read_resolved};
 
 /// The run folder's record of its inputs besides its config: where the views are and their
 /// fingerprint when the run started (a resumed run refuses views that changed since).
 pub const INPUTS_FILE: &str = "invert3d.json";
+
+/// The `problem` key's value that names this run kind.
+pub const PROBLEM: &str = "image3d";
 
 /// The built-in 3-D codes a `truth` may name instead of a file.
 pub const BUILT_IN_CODES: &[&str] = &["tetrahedron", "sierpinski-tetrahedron", "fern3d", "fern-3d"];
@@ -178,6 +182,15 @@ impl Image3dRunConfig {
         plain(self) == plain(other)
     }
 
+    /// The resolved config as a run folder's `config.toml` holds it (and a sweep hashes
+    /// it): `problem = "image3d"` first, every file named absolutely.
+    pub fn resolved_table(&self) -> anyhow::Result<toml::Table> {
+        let mut t = toml::Table::new();
+        t.insert(PROBLEM_KEY.into(), PROBLEM.into());
+        t.extend(self.with_absolute_paths()?.to_table()?);
+        Ok(t)
+    }
+
     /// The config as a TOML table without its `problem` key: the fit's keys and the inputs'.
     pub fn to_table(&self) -> anyhow::Result<toml::Table> {
         let mut t = toml::Table::try_from(&self.fit).context("writing the image3d config")?;
@@ -282,7 +295,7 @@ pub fn run(
             );
         }
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        let resolved = crate::runs::RunConfig::Image3d(Box::new(cfg.clone())).to_table()?;
+        let resolved = cfg.resolved_table()?;
         ifslab::io::write_atomic(
             &dir.join(CONFIG_FILE),
             toml::to_string_pretty(&resolved)?.as_bytes(),
@@ -355,15 +368,19 @@ pub fn load_run(dir: &Path) -> anyhow::Result<Image3dRunConfig> {
     let table: toml::Table = text
         .parse()
         .with_context(|| format!("{} is not valid TOML", path.display()))?;
-    if table.contains_key(crate::runs::config::PROBLEM_KEY) {
-        return match crate::runs::RunConfig::load_resolved(&path)? {
-            crate::runs::RunConfig::Image3d(c) => Ok(*c),
-            other => bail!(
-                "{} holds a {} run, not an invert3d one (resume it with `ifslab run --resume`)",
-                dir.display(),
-                other.problem()
-            ),
-        };
+    if table.contains_key(PROBLEM_KEY) {
+        let mut table = read_resolved(&path)?;
+        let problem = problem_of(&table).to_owned();
+        if problem != PROBLEM {
+            bail!(
+                "{} holds a {problem} run, not an invert3d one (resume it with `ifslab run \
+                 --resume`)",
+                dir.display()
+            );
+        }
+        table.remove(PROBLEM_KEY);
+        let folder = path.parent().unwrap_or(Path::new(""));
+        return Ok(Image3dRunConfig::from_table(table, &path)?.relative_to(folder));
     }
     let fit: Image3dConfig = toml::Value::Table(table).try_into().with_context(|| {
         format!(
