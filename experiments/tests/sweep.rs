@@ -881,8 +881,16 @@ fn the_table_sweeps_expand_and_their_committed_runs_are_theirs() {
     assert_eq!(t4.runs.len(), 12 * 50);
     // The Table 4 baseline row is Table 3's paper recipe: the same runs, the same ids.
     assert_eq!(t3.runs[0].id, t4.runs[0].id);
-    // Both tables are complete: every run of each sweep file is committed, and nothing else.
-    for (plan, folder) in [(&t3, "table3_medium"), (&t4, "table4_medium")] {
+    // Table 3's rows that start from a random code, the start drawn per run, on 30 codes:
+    // ours_paper, ours_basin, the four value-only baselines and Learning Fractals twice.
+    let t3s = Plan::load(&repro.join("table3_starts.toml")).unwrap();
+    assert_eq!(t3s.runs.len(), 8 * 30);
+    // The tables are complete: every run of each sweep file is committed, and nothing else.
+    for (plan, folder) in [
+        (&t3, "table3_medium"),
+        (&t4, "table4_medium"),
+        (&t3s, "table3_starts"),
+    ] {
         let done = repro.join("results").join(folder);
         let ids: std::collections::HashSet<&str> =
             plan.runs.iter().map(|r| r.id.as_str()).collect();
@@ -955,11 +963,21 @@ fn the_committed_reports_are_collect_of_their_committed_runs() {
             results.join("table4_medium/report"),
             ReportOptions {
                 by: vec![vec!["ablation".into()]],
-                metrics: suite,
+                metrics: suite.clone(),
                 versus: Some("ours".into()),
                 ..ReportOptions::default()
             },
             vec!["report.md", "aggregate_ablation.csv", "paired_ablation.csv"],
+        ),
+        (
+            results.join("table3_starts"),
+            results.join("table3_starts/report"),
+            ReportOptions {
+                by: vec![vec!["method".into()]],
+                metrics: suite,
+                ..ReportOptions::default()
+            },
+            vec!["report.md", "aggregate_method.csv"],
         ),
         (
             cs,

@@ -25,13 +25,15 @@ pub const PACK_FORMAT: &str = "ifslab-runs/1";
 pub const PACK_SUFFIX: &str = ".jsonl.gz";
 /// The log a run writes, kept as columns.
 pub use crate::runs::inversion::LOG_FILE;
+use ifslab_strategies::driver::plan::CHECKPOINT_FILE;
 /// Significant digits the packed log columns keep (the first column, the iteration, is exact).
 pub const LOG_DIGITS: usize = 5;
 /// The log columns kept besides the first (the iteration): what the report plots and what
 /// the chaotic-splatting README reads from the logs.
 pub const DEFAULT_LOG_COLUMNS: &[&str] = &["loss", "anneal_accepted"];
-/// Files kept verbatim, by extension; anything else (pictures, `target.npy`, checkpoints) is
-/// left out.
+/// Files kept verbatim, by extension; anything else (pictures, `target.npy`) is left out, and
+/// so are checkpoints ([`CHECKPOINT_FILE`], at any depth: a finished run resumes from nothing,
+/// and a checkpoint weighs more than the rest of its run).
 const TEXT_EXTENSIONS: &[&str] = &["json", "toml", "csv", "txt", "flame", "md"];
 
 /// The first line of a pack.
@@ -183,6 +185,24 @@ impl PackedRun {
         Ok(run)
     }
 
+    /// Moves the run's checkpoints (packed before they were left out) to `left_out`.
+    fn leave_out_checkpoints(&mut self) {
+        let names: Vec<String> = self
+            .files
+            .keys()
+            .filter(|rel| !is_text(rel))
+            .cloned()
+            .collect();
+        if names.is_empty() {
+            return;
+        }
+        for rel in names {
+            self.files.remove(&rel);
+            self.left_out.push(rel);
+        }
+        self.left_out.sort();
+    }
+
     /// A text file of the run.
     pub fn file(&self, name: &str) -> Option<&str> {
         self.files.get(name).map(String::as_str)
@@ -223,9 +243,10 @@ impl PackedRun {
 }
 
 fn is_text(rel: &str) -> bool {
-    Path::new(rel)
-        .extension()
+    let path = Path::new(rel);
+    path.extension()
         .is_some_and(|e| TEXT_EXTENSIONS.contains(&e.to_string_lossy().as_ref()))
+        && path.file_name().is_none_or(|n| n != CHECKPOINT_FILE)
 }
 
 /// Files under `dir`, relative to `root` with `/` separators; dot files and folders (locks)
@@ -401,6 +422,10 @@ pub struct Packed {
 pub fn pack(runs: &Path, keep: &[String], remove: bool) -> anyhow::Result<Packed> {
     let path = pack_path(runs);
     let mut pack = Pack::beside(runs)?;
+    // Runs packed before checkpoints were left out lose theirs now.
+    for r in &mut pack.runs {
+        r.leave_out_checkpoints();
+    }
     let mut dirs: Vec<PathBuf> = std::fs::read_dir(runs)
         .with_context(|| format!("reading {}", runs.display()))?
         .filter_map(|e| e.ok().map(|e| e.path()))
@@ -510,6 +535,9 @@ mod tests {
         std::fs::write(a.join("config.toml"), "seed = 1\n").unwrap();
         std::fs::write(a.join("sub/notes.txt"), "kept").unwrap();
         std::fs::write(a.join("render.png"), [0u8, 159, 146, 150]).unwrap();
+        // Checkpoints, the run's own and its legs', are left out too.
+        std::fs::write(a.join(CHECKPOINT_FILE), "{\"theta\": [1.0]}").unwrap();
+        std::fs::write(a.join("sub").join(CHECKPOINT_FILE), "{}").unwrap();
         std::fs::write(
             a.join("log.csv"),
             "iter,loss,msmse,seconds\n0,1.234567891,0.5,0.1\n1,NaN,0.4,0.2\n123456,0.000123456789,0.3,0.3\n",
@@ -525,13 +553,25 @@ mod tests {
         assert!(!a.exists() && p.path == tmp.path().join("runs.jsonl.gz"));
         let back = Pack::read(&p.path).unwrap();
         let r = back.get("abc").unwrap();
-        assert_eq!(r.left_out, ["render.png"]);
+        assert_eq!(
+            r.left_out,
+            [CHECKPOINT_FILE, "render.png", "sub/checkpoint.json"]
+        );
         assert_eq!(r.file("sub/notes.txt"), Some("kept"));
         assert_eq!(
             r.loss_curve().unwrap(),
             [(0.0, 1.2346), (123456.0, 0.00012346)],
             "the iteration exact, the loss to 5 digits, NaN left out"
         );
+        // A pack written before checkpoints were left out loses them when packed again.
+        let mut old = back.clone();
+        old.runs[0]
+            .files
+            .insert(CHECKPOINT_FILE.into(), "{\"theta\": [1.0]}".into());
+        old.runs[0].left_out.retain(|f| f != CHECKPOINT_FILE);
+        old.write(&p.path).unwrap();
+        pack(&runs, &keep, false).unwrap();
+        assert_eq!(Pack::read(&p.path).unwrap().get("abc"), Some(r));
         // Packing again changes nothing, byte for byte.
         let bytes = std::fs::read(&p.path).unwrap();
         pack(&runs, &keep, false).unwrap();
