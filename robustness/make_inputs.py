@@ -36,7 +36,7 @@ from PIL import Image, ImageDraw, ImageFont
 from PIL import __version__ as PILLOW_VERSION
 
 BASE_SEED = 20251127
-SPLIT_IDS = {"tune": 1, "test": 2, "tune2": 3, "tune3": 4}  # tune2, tune3: more tuning cases, never reported
+SPLIT_IDS = {"tune": 1, "test": 2, "tune2": 3, "tune3": 4, "tune4": 5}  # tune2..tune4: more tuning cases, never reported
 FAMILIES = [
     "codes_random",
     "codes_classic",
@@ -1388,8 +1388,8 @@ def make_split(split, out_root, preview, families, n):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--split", choices=["tune", "test", "tune2", "tune3", "all"], default="all",
-                    help="all: tune and test; tune2, tune3: more tuning splits (more cases to choose on)")
+    ap.add_argument("--split", choices=["tune", "test", "tune2", "tune3", "tune4", "all"], default="all",
+                    help="all: tune and test; tune2, tune3, tune4: more tuning splits (more cases to choose on)")
     ap.add_argument("-o", "--output", type=Path, default=HERE / "inputs",
                     help="output folder (default: robustness/inputs)")
     ap.add_argument("--preview", action="store_true", help="also write preview_<family>.png contact sheets")

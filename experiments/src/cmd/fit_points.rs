@@ -120,8 +120,8 @@ pub struct Args {
     /// no re-orientation or word search, no recentring.
     #[arg(long, conflicts_with_all = ["preselect_schedule", "preselect_by", "reorient", "reorient_every", "no_recentre", "update", "no_reflections", "no_words", "trim_outliers"])]
     pub paper: bool,
-    /// Independent runs; the one with the best held-out log-likelihood is kept [default: 4
-    /// for up to five maps, else 1; with --paper 1].
+    /// Independent runs; the one with the best held-out log-likelihood is kept [default: 8
+    /// for up to three maps, 4 for four and five, else 1; with --paper 1].
     #[arg(long)]
     pub runs: Option<usize>,
     /// Fraction of the points held out for evaluation.

@@ -67,6 +67,10 @@ pub struct FitArgs {
     /// [default: 1,0.75,0.5; --paper: none]
     #[arg(long, value_delimiter = ',')]
     pub sigma_factors: Option<Vec<f64>>,
+    /// Fit twice more (coarse to fine, and with a distance term) when the kept fit's render
+    /// agrees with the target on an IoU below this; 0 never. [default: 0.5; --paper: 0]
+    #[arg(long)]
+    pub rescue_below: Option<f64>,
     /// Coarse to fine: σ at the first iteration, shrinking geometrically to --sigma.
     /// [default: none]
     #[arg(long)]
@@ -214,6 +218,7 @@ fn flag_table(a: &FitArgs) -> anyhow::Result<toml::Table> {
             .as_ref()
             .map(|f| toml::Value::Array(f.iter().map(|&x| x.into()).collect())),
     );
+    t.set("rescue_below", super::float(a.rescue_below));
     t.set("sigma_start", super::float(a.sigma_start));
     t.set("sigma_iterations", super::count(a.sigma_iterations));
     t.set("loss.levels", super::count(a.levels));

@@ -5,7 +5,9 @@
 //! render` draws it as the fit saw it), the loss plot and `summary.json`. A fit at several
 //! widths σ (`sigma_factors`) runs each whole in a folder of its own (`sigma-0`, `sigma-1`,
 //! … with their checkpoints, starts and logs, each resumed where it stopped) and writes
-//! the kept one's render, pattern, log and loss plot where a single fit's would be.
+//! the kept one's render, pattern, log and loss plot where a single fit's would be. A kept
+//! fit whose render agrees with the target on an IoU below `rescue_below` is followed by two
+//! more (`rescue-0`, `rescue-1`: coarse to fine, and with a distance term), the best kept.
 
 use std::path::Path;
 use std::sync::Arc;
@@ -21,8 +23,8 @@ use ifslab_strategies::problems::image::{
     load_framed_picture, load_framed_target, save_framed_target,
 };
 use ifslab_strategies::problems::sdf::{
-    CUTOFF_SIGMAS, INK, SdfConfig, SdfOutcome, SdfProblem, at_sigma, run_sdf, sdf_problem,
-    stretch_ink, stroke_sigma_legs,
+    CUTOFF_SIGMAS, INK, SdfConfig, SdfOutcome, SdfProblem, at_sigma, rescue_legs, run_sdf,
+    sdf_problem, stretch_ink, stroke_sigma_legs,
 };
 use serde::Serialize;
 
@@ -64,7 +66,8 @@ pub struct SdfSummary {
     pub returned: String,
     /// The returned control points.
     pub points: Vec<[f64; 2]>,
-    /// With several widths σ (`sigma_factors`), every fit, in the order they ran; the one
+    /// With several widths σ (`sigma_factors`) or rescue fits (`rescue_below`; a single
+    /// fit is then listed first, in folder `.`), every fit, in the order they ran; the one
     /// with the highest `iou` is the run's result (the first of equals).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub legs: Vec<SdfLegSummary>,
@@ -139,21 +142,20 @@ struct Timed {
 fn run_legs(
     cfg: &SdfConfig,
     ink: &[f64],
-    sigmas: &[f64],
+    legs: &[(String, SdfConfig)],
     dir: &Path,
     resume: bool,
-    progress: Box<dyn Progress>,
+    progress: Arc<dyn Progress>,
     truth_iou: &dyn Fn(&Pattern) -> anyhow::Result<Option<f64>>,
 ) -> anyhow::Result<(Timed, Vec<SdfLegSummary>)> {
-    let progress: Arc<dyn Progress> = Arc::from(progress);
-    progress.start(cfg.strategy.name(), cfg.iterations * sigmas.len() as u64);
+    progress.start(cfg.strategy.name(), cfg.iterations * legs.len() as u64);
     let clock = Instant::now();
     let mut fresh = 0;
     let mut best: Option<(usize, Leg)> = None;
-    let mut summaries = Vec::with_capacity(sigmas.len());
-    for (i, &sigma) in sigmas.iter().enumerate() {
-        let leg_cfg = at_sigma(cfg, sigma);
-        let folder = leg_folder(i);
+    let mut summaries = Vec::with_capacity(legs.len());
+    for (i, (folder, leg_cfg)) in legs.iter().enumerate() {
+        let sigma = leg_cfg.sigma;
+        let folder = folder.clone();
         let leg_dir = dir.join(&folder);
         let leg_resume = leg_resumes(&leg_dir, resume);
         let done_before = if leg_resume {
@@ -164,11 +166,11 @@ fn run_legs(
         let observer = ProgressObserver::new(Box::new(LegProgress::new(
             progress.clone(),
             i,
-            sigmas.len(),
+            legs.len(),
             cfg.iterations,
         )));
         let out = run_sdf(
-            &leg_cfg,
+            leg_cfg,
             ink.to_vec(),
             None,
             &leg_dir,
@@ -177,7 +179,7 @@ fn run_legs(
         )
         .with_context(|| format!("the fit at σ = {sigma:.3} px ({folder})"))?;
         fresh += out.iterations.saturating_sub(done_before);
-        let leg = Leg::score(sdf_problem(&leg_cfg, ink.to_vec(), None)?, out, ink)?;
+        let leg = Leg::score(sdf_problem(leg_cfg, ink.to_vec(), None)?, out, ink)?;
         summaries.push(SdfLegSummary {
             sigma,
             folder,
@@ -325,9 +327,15 @@ pub fn run(
             .map(|t| pattern_iou(t, p, TRUTH_SIZE, cfg.depth, TRUTH_SIGMA))
             .transpose()
     };
+    let progress: Arc<dyn Progress> = Arc::from(progress);
     let legs = stroke_sigma_legs(cfg, stroke)?;
-    let (leg, legs) = if legs.len() > 1 {
-        run_legs(cfg, &ink, &legs, dir, resume, progress, &truth_iou)?
+    let (leg, mut legs) = if legs.len() > 1 {
+        let legs: Vec<(String, SdfConfig)> = legs
+            .iter()
+            .enumerate()
+            .map(|(i, &sigma)| (leg_folder(i), at_sigma(cfg, sigma)))
+            .collect();
+        run_legs(cfg, &ink, &legs, dir, resume, progress.clone(), &truth_iou)?
     } else {
         let done_before = if resume {
             ifslab_strategies::driver::plan::checkpoint_iteration(dir)?
@@ -342,7 +350,12 @@ pub fn run(
             stroke,
             dir,
             resume,
-            vec![Box::new(ProgressObserver::new(progress))],
+            vec![Box::new(ProgressObserver::new(Box::new(LegProgress::new(
+                progress.clone(),
+                0,
+                1,
+                cfg.iterations,
+            ))))],
         )?;
         let seconds = clock.elapsed().as_secs_f64();
         let problem = sdf_problem(cfg, ink.clone(), stroke)?;
@@ -356,6 +369,44 @@ pub fn run(
             },
             Vec::new(),
         )
+    };
+    // A fit that agrees poorly with its target is fitted twice more (`rescue_below`).
+    let rescue = rescue_legs(cfg, leg.leg.problem.sigma());
+    let leg = if !rescue.is_empty() && leg.leg.iou < cfg.rescue_below {
+        if legs.is_empty() {
+            // The single fit becomes the first of the run's fits, in the run's own folder.
+            legs.push(SdfLegSummary {
+                sigma: leg.leg.problem.sigma(),
+                folder: ".".to_owned(),
+                loss: leg.leg.out.loss,
+                iou: leg.leg.iou,
+                truth_iou: truth_iou(&leg.leg.problem.pattern_at(&leg.leg.out.theta)?)?,
+                chosen: true,
+            });
+        }
+        let (extra, mut summaries) =
+            run_legs(cfg, &ink, &rescue, dir, resume, progress, &truth_iou)?;
+        let seconds = leg.seconds + extra.seconds;
+        let fresh = leg.fresh + extra.fresh;
+        if extra.leg.iou > leg.leg.iou {
+            legs.iter_mut().for_each(|l| l.chosen = false);
+            legs.append(&mut summaries);
+            Timed {
+                leg: extra.leg,
+                seconds,
+                fresh,
+            }
+        } else {
+            summaries.iter_mut().for_each(|l| l.chosen = false);
+            legs.append(&mut summaries);
+            Timed {
+                seconds,
+                fresh,
+                ..leg
+            }
+        }
+    } else {
+        leg
     };
     let Timed {
         leg,

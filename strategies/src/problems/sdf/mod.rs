@@ -29,13 +29,18 @@ pub mod run;
 pub mod target;
 
 pub use barrier::scale_barrier;
-pub use config::{DEFAULT_SIGMA_FACTORS, SdfConfig, SdfInitConfig};
+pub use config::{
+    DEFAULT_RESCUE_BELOW, DEFAULT_SIGMA_FACTORS, RESCUE_DISTANCE, RESCUE_SIGMA_START, SdfConfig,
+    SdfInitConfig,
+};
 pub use crossing::{MAX_CROSSING_DEPTH, crossing_depth2, crossing_penalty};
 pub use init::{PROBE_STEPS, SdfInit, candidate_starts, initial_points};
 pub use landscape::sdf_landscape;
 pub use learned::{LearnedConfig, LearnedPattern};
 pub use problem::{CUTOFF_SIGMAS, SDF_TERMS, SdfEval, SdfLossConfig, SdfProblem};
-pub use run::{SdfOutcome, at_sigma, best_start, run_sdf, sdf_problem, stroke_sigma_legs};
+pub use run::{
+    SdfOutcome, at_sigma, best_start, rescue_legs, run_sdf, sdf_problem, stroke_sigma_legs,
+};
 pub use target::{
     INK, STROKE_SIGMA_RANGE, best_fit_line, distance_transform, sigma_for_stroke, stretch_ink,
 };

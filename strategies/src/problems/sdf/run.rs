@@ -11,7 +11,7 @@ use ifslab::render::sdf::SdfView;
 use crate::driver::GradState;
 use crate::driver::plan::{RunPlan, START_FILE};
 use crate::error::{Error, Result};
-use crate::problems::sdf::config::SdfConfig;
+use crate::problems::sdf::config::{RESCUE_DISTANCE, RESCUE_SIGMA_START, SdfConfig};
 use crate::problems::sdf::init::{SdfInit, candidate_starts, initial_points};
 use crate::problems::sdf::problem::{SDF_TERMS, SdfProblem};
 use crate::problems::sdf::target::{STROKE_SIGMA_RANGE, sigma_for_stroke};
@@ -58,6 +58,31 @@ pub fn stroke_sigma_legs(cfg: &SdfConfig, stroke: Option<f64>) -> Result<Vec<f64
         }
     }
     Ok(legs)
+}
+
+/// The further fits of `cfg` where the fit kept at width `sigma` agrees with its target on
+/// an IoU below `rescue_below`, each with its folder name: coarse to fine from
+/// [`RESCUE_SIGMA_START`] (or twice `sigma`) down to `sigma`, and at `sigma` with the
+/// distance term at [`RESCUE_DISTANCE`]. Empty when `rescue_below` is 0.
+pub fn rescue_legs(cfg: &SdfConfig, sigma: f64) -> Vec<(String, SdfConfig)> {
+    if cfg.rescue_below <= 0.0 {
+        return Vec::new();
+    }
+    let at = SdfConfig {
+        rescue_below: 0.0,
+        ..at_sigma(cfg, sigma)
+    };
+    let coarse = SdfConfig {
+        sigma_start: Some(RESCUE_SIGMA_START.max(2.0 * sigma)),
+        sigma_iterations: None,
+        ..at.clone()
+    };
+    let mut distance = at;
+    distance.loss.distance = RESCUE_DISTANCE;
+    vec![
+        ("rescue-0".to_owned(), coarse),
+        ("rescue-1".to_owned(), distance),
+    ]
 }
 
 /// `cfg` with σ fixed at `sigma` (one leg of [`stroke_sigma_legs`]).
@@ -255,5 +280,36 @@ mod tests {
         // A leg draws at its width.
         let leg = at_sigma(&cfg, 3.0);
         assert!(!leg.stroke_sigma && leg.sigma == 3.0 && leg.sigma_factors.is_empty());
+    }
+
+    #[test]
+    fn a_poorly_agreeing_fit_is_followed_by_a_coarse_to_fine_fit_and_a_distance_fit() {
+        let cfg = SdfConfig::new("t.png", "koch");
+        assert_eq!(cfg.rescue_below, crate::problems::sdf::DEFAULT_RESCUE_BELOW);
+        let legs = rescue_legs(&cfg, 0.75);
+        let names: Vec<&str> = legs.iter().map(|(n, _)| n.as_str()).collect();
+        assert_eq!(names, ["rescue-0", "rescue-1"]);
+        for (_, leg) in &legs {
+            // At the kept width, one fit each, never rescued again.
+            assert!(leg.sigma == 0.75 && !leg.stroke_sigma && leg.sigma_factors.is_empty());
+            assert_eq!(leg.rescue_below, 0.0);
+            leg.validate().unwrap();
+        }
+        assert_eq!(legs[0].1.sigma_start, Some(RESCUE_SIGMA_START));
+        assert_eq!(legs[0].1.loss.distance, cfg.loss.distance);
+        assert_eq!(legs[1].1.sigma_start, None);
+        assert_eq!(legs[1].1.loss.distance, RESCUE_DISTANCE);
+        // Coarse to fine starts at least twice the kept width.
+        assert_eq!(rescue_legs(&cfg, 1.5)[0].1.sigma_start, Some(3.0));
+        // The paper's recipe never fits again.
+        assert!(rescue_legs(&SdfConfig::paper("t.png", "koch"), 0.75).is_empty());
+        let mut bad = cfg.clone();
+        bad.rescue_below = 1.5;
+        assert!(
+            bad.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("rescue_below")
+        );
     }
 }
