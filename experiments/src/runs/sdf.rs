@@ -454,8 +454,13 @@ pub fn run(
         strategy: cfg.strategy.name().to_owned(),
         iterations: out.iterations,
         seconds,
-        // Only this process's iterations were timed.
-        seconds_per_iteration: out.seconds / fresh as f64,
+        // Only this process's iterations were timed: a single fit's own time, or every
+        // fit's together over their iterations together.
+        seconds_per_iteration: if legs.is_empty() {
+            out.seconds
+        } else {
+            seconds
+        } / fresh as f64,
         sigma: problem.sigma(),
         loss: out.loss,
         mse,
