@@ -384,26 +384,19 @@ pub fn run(
                 chosen: true,
             });
         }
-        let (extra, mut summaries) =
-            run_legs(cfg, &ink, &rescue, dir, resume, progress, &truth_iou)?;
-        let seconds = leg.seconds + extra.seconds;
-        let fresh = leg.fresh + extra.fresh;
-        if extra.leg.iou > leg.leg.iou {
-            legs.iter_mut().for_each(|l| l.chosen = false);
-            legs.append(&mut summaries);
-            Timed {
-                leg: extra.leg,
-                seconds,
-                fresh,
-            }
-        } else {
-            summaries.iter_mut().for_each(|l| l.chosen = false);
-            legs.append(&mut summaries);
-            Timed {
-                seconds,
-                fresh,
-                ..leg
-            }
+        let (extra, summaries) = run_legs(cfg, &ink, &rescue, dir, resume, progress, &truth_iou)?;
+        let rescued = extra.leg.iou > leg.leg.iou;
+        for l in &mut legs {
+            l.chosen &= !rescued;
+        }
+        legs.extend(summaries.into_iter().map(|l| SdfLegSummary {
+            chosen: l.chosen && rescued,
+            ..l
+        }));
+        Timed {
+            leg: if rescued { extra.leg } else { leg.leg },
+            seconds: leg.seconds + extra.seconds,
+            fresh: leg.fresh + extra.fresh,
         }
     } else {
         leg
