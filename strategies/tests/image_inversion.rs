@@ -50,6 +50,7 @@ fn base_config(size: usize, iterations: u64, strategy: StrategyConfig) -> Invers
         seed: 1,
         iterations,
         best_of: 1,
+        best_of_starts: Default::default(),
         checkpoint_every: 0,
         output: None,
         target: TargetConfig {

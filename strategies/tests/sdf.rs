@@ -314,3 +314,74 @@ fn a_coarse_to_fine_schedule_over_part_of_the_run_is_checked() {
     .unwrap();
     assert_eq!(ok.sigma_iterations, Some(200));
 }
+
+/// A Koch curve whose apex is lower than the template's (0.6 of its height, as in the
+/// robustness suite's perturbed patterns) from (0.1, 0.45) to (0.9, 0.45).
+fn low_koch() -> Pattern {
+    let h = 0.6 * 0.8 * 3f64.sqrt() / 6.0;
+    builtin("koch")
+        .unwrap()
+        .with_flat_points(&[
+            0.1,
+            0.45,
+            0.1 + 0.8 / 3.0,
+            0.45,
+            0.5,
+            0.45 + h,
+            0.9 - 0.8 / 3.0,
+            0.45,
+            0.9,
+            0.45,
+        ])
+        .unwrap()
+}
+
+/// The template's box fitted into the ink's with its aspect kept starts a low Koch curve
+/// contracted (its ends 20 % inside the curve's), where a thin curve's fit stays (the
+/// robustness suite's `tune4` `patterns_koch-40`: truth IoU 0.10); the stretched box spans
+/// the ink's width, and the best of the starts, which now includes it, recovers the points.
+#[test]
+fn a_low_koch_curve_starts_from_the_stretched_box_and_is_recovered() {
+    use ifslab_strategies::problems::sdf::candidate_starts;
+    let (size, depth, sigma) = (96, 4, 0.75);
+    let truth = low_koch();
+    let view = SdfView::unit_square(size);
+    let target = SdfRaster::render(
+        &truth,
+        &view,
+        &SdfRenderConfig {
+            depth,
+            cutoff: None,
+        },
+    )
+    .unwrap()
+    .image(sigma);
+    let koch = builtin("koch").unwrap();
+    let starts = candidate_starts(&koch, &target, &view, true).unwrap();
+    let width = |t: &[f64]| (t[8] - t[0]).abs();
+    let named = |n: &str| starts.iter().find(|(s, _)| *s == n).map(|(_, t)| t.clone());
+    let kept = named("box").expect("the box start");
+    let stretched = named("box_stretched").expect("the stretched box start");
+    assert!(width(&kept) < 0.85 * 0.8, "kept aspect: {kept:?}");
+    assert!((width(&stretched) - 0.8).abs() < 0.03, "{stretched:?}");
+    // Without `stretched` the two are not offered.
+    let plain = candidate_starts(&koch, &target, &view, false).unwrap();
+    assert!(plain.iter().all(|(n, _)| !n.starts_with("box_stretched")));
+    assert_eq!(plain.len() + 2, starts.len());
+
+    let dir = tempfile::tempdir().unwrap();
+    let mut cfg = koch_config(dir.path(), 300, 1.0);
+    cfg.size = size;
+    cfg.depth = depth;
+    cfg.sigma = sigma;
+    cfg.init.kind = SdfInit::Best;
+    let out = run_sdf(&cfg, target, None, dir.path(), false, vec![]).unwrap();
+    let err = koch_error(&out.theta, &truth.flat_points());
+    assert!(
+        out.start_kind
+            .is_some_and(|k| k.starts_with("box_stretched")),
+        "{:?}",
+        out.start_kind
+    );
+    assert!(err < 1e-2, "control points off by {err}: {:?}", out.theta);
+}

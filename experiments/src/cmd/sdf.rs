@@ -43,7 +43,7 @@ pub struct FitArgs {
     #[arg(long, default_value = "koch")]
     pub pattern: String,
     /// Scott's recipe instead of ifslab's: the best-fit-line start, --sigma as given, 128².
-    /// ifslab's (the default): the best of five starts, σ as wide as the picture's strokes
+    /// ifslab's (the default): the best of up to seven starts, σ as wide as the picture's strokes
     /// and 0.75 and 0.5 times that (three fits, the one closest to the target kept), 192²
     /// (robustness/README.md measures both).
     #[arg(long)]
@@ -104,8 +104,11 @@ pub struct FitArgs {
     #[arg(long)]
     pub max_scale: Option<f64>,
     /// Where the points start: line (the paper's best-fit line), pattern (its shape on that
-    /// line), given (the pattern file's points), best (the best of five starts, each followed for
-    /// `init.probe_steps` Adam steps, 80 by default). [default: best; --paper: line]
+    /// line), given (the pattern file's points), best (the best of up to seven starts — the line, the
+    /// pattern on it, the pattern in the ink's box with its aspect kept and stretched to fill
+    /// it, each either way round —, each followed for `init.probe_steps` Adam steps, 80 by
+    /// default; `init.stretched = false` in a config leaves the two stretched ones out).
+    /// [default: best; --paper: line]
     #[arg(long)]
     pub init: Option<String>,
     /// Gaussian noise added to the start (units of the target's side). [default: 0]

@@ -14,9 +14,9 @@ use ifslab::render::image_io::{BitDepth, save_grey_png};
 use ifslab::render::{RenderConfig, View, Zoom, render};
 use ifslab_strategies::driver::plan::{CHECKPOINT_FILE, START_FILE};
 use ifslab_strategies::problems::image::{
-    FRAMED_TARGET_FILE, InversionConfig, InversionOutcome, TARGET_READING_FILE, TargetReading,
-    ensure_new_run_dir, load_framed_picture_with, load_framed_target, load_target, run_inversion,
-    save_framed_target,
+    BestOfStarts, FRAMED_TARGET_FILE, InitKind, InversionConfig, InversionOutcome,
+    TARGET_READING_FILE, TargetReading, ensure_new_run_dir, load_framed_picture_with,
+    load_framed_target, load_target, run_inversion, save_framed_target,
 };
 use plotters::prelude::*;
 use serde::Serialize;
@@ -353,12 +353,19 @@ fn run_best_of(
     let mut best: Option<(usize, Summary)> = None;
     for i in 0..n {
         let seed = cfg.seed.wrapping_add(i as u64);
-        let leg_cfg = InversionConfig {
+        let mut leg_cfg = InversionConfig {
             best_of: 1,
+            best_of_starts: BestOfStarts::Seeded,
             seed,
             output: None,
             ..cfg.clone()
         };
+        // Ranked starts: every run reads the one collage search at the inversion's start
+        // seed and takes its own rank of it.
+        if cfg.best_of_starts == BestOfStarts::Ranked && ranks_collage_starts(cfg) {
+            leg_cfg.model.init_seed = Some(cfg.model.init_seed.unwrap_or(cfg.seed));
+            leg_cfg.model.start_rank = i;
+        }
         let folder = leg_folder(i);
         let leg_dir = dir.join(&folder);
         let leg_progress = LegProgress::new(progress.clone(), i, n, cfg.iterations);
@@ -406,6 +413,15 @@ fn run_best_of(
         serde_json::to_string_pretty(&summary)?.as_bytes(),
     )?;
     Ok(summary)
+}
+
+/// Whether the runs of `cfg` start from the collage search's ranked starts where
+/// `best_of_starts = "ranked"`: a collage start (`model.init`), no start code, and every run
+/// at rank 0 (the leg sets the rank).
+fn ranks_collage_starts(cfg: &InversionConfig) -> bool {
+    cfg.model.init == InitKind::Collage
+        && cfg.model.init_code.is_none()
+        && cfg.model.start_rank == 0
 }
 
 /// A framed target and how the picture was read (none for a code or suite target).

@@ -64,6 +64,10 @@ pub struct SdfSummary {
     pub truth_iou: Option<f64>,
     /// `last` or `start` (see `SdfOutcome::returned`).
     pub returned: String,
+    /// Which start the kept fit began from (`SdfOutcome::start_kind`: `line`, `pattern`,
+    /// `box_stretched`, …).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub start: Option<&'static str>,
     /// The returned control points.
     pub points: Vec<[f64; 2]>,
     /// With several widths σ (`sigma_factors`) or rescue fits (`rescue_below`; a single
@@ -87,6 +91,9 @@ pub struct SdfLegSummary {
     /// IoU against the truth, when given (reported only, never used to choose).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub truth_iou: Option<f64>,
+    /// Its start (`SdfOutcome::start_kind`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub start: Option<&'static str>,
     /// Whether it is the run's result.
     pub chosen: bool,
 }
@@ -186,6 +193,7 @@ fn run_legs(
             loss: leg.out.loss,
             iou: leg.iou,
             truth_iou: truth_iou(&leg.problem.pattern_at(&leg.out.theta)?)?,
+            start: leg.out.start_kind,
             chosen: false,
         });
         if best.as_ref().is_none_or(|(_, b)| leg.iou > b.iou) {
@@ -381,6 +389,7 @@ pub fn run(
                 loss: leg.leg.out.loss,
                 iou: leg.leg.iou,
                 truth_iou: truth_iou(&leg.leg.problem.pattern_at(&leg.leg.out.theta)?)?,
+                start: leg.leg.out.start_kind,
                 chosen: true,
             });
         }
@@ -460,6 +469,7 @@ pub fn run(
         iou,
         truth_iou,
         returned: out.returned.to_owned(),
+        start: out.start_kind,
         points: fitted.points().to_vec(),
         legs,
     };

@@ -476,7 +476,7 @@ pub fn start_scores(
 
 /// `k` maps whose attractor covers the bright part of `target` (`size × size`, row 0 at the
 /// top), in the inversion's coordinates (`[−1, 1]²`, y up); see the module's description.
-/// Deterministic for `seed`.
+/// Deterministic for `seed`. The best of [`collage_covers`] (the first of equals).
 pub fn collage_maps(
     target: &[f32],
     size: usize,
@@ -484,6 +484,37 @@ pub fn collage_maps(
     seed: u64,
     search: &CollageSearch,
 ) -> Result<Vec<Affine2>> {
+    let covers = collage_covers(target, size, k, seed, search)?;
+    let mut best = &covers[0];
+    for c in &covers[1..] {
+        if c.score > best.score {
+            best = c;
+        }
+    }
+    Ok(best.maps.clone())
+}
+
+/// One cover of the collage search, scored.
+#[derive(Clone, Debug)]
+pub struct ScoredCover {
+    /// The IoU of its attractor with the ink (step 4 of the module's description).
+    pub score: f64,
+    /// Its maps, in the inversion's coordinates.
+    pub maps: Vec<Affine2>,
+    /// Which candidates it is made of (sorted) and whether it was refined: two covers of
+    /// equal key are the same code.
+    pub key: (Vec<usize>, bool),
+}
+
+/// Every cover the collage search scores, in the order it scores them (each greedy pass,
+/// then its refined version where [`CollageSearch::refine`] asks for one); never empty.
+pub fn collage_covers(
+    target: &[f32],
+    size: usize,
+    k: usize,
+    seed: u64,
+    search: &CollageSearch,
+) -> Result<Vec<ScoredCover>> {
     if k == 0 {
         return Err(Error::InvalidInput(
             "the collage start needs at least one map".into(),
@@ -509,7 +540,7 @@ pub fn collage_maps(
     let totals: Vec<f64> = cover.iter().map(|c| count(c) as f64).collect();
 
     let mut pick_rng = trajectory_rng(stream, u64::MAX);
-    let mut best: Option<(f64, Vec<PixelMap>)> = None;
+    let mut scored: Vec<ScoredCover> = Vec::new();
     for trial in 0..search.covers.max(1) {
         let jitter: Vec<f64> = (0..maps.len())
             .map(|_| {
@@ -546,22 +577,25 @@ pub fn collage_maps(
             chosen.push(i);
         }
         let code: Vec<PixelMap> = chosen.iter().map(|&i| maps[i]).collect();
-        let mut versions = vec![code];
+        let mut key = chosen.clone();
+        key.sort_unstable();
+        let mut versions = vec![(code, false)];
         if search.refine > 0 {
-            let mut refined = versions[0].clone();
+            let mut refined = versions[0].0.clone();
             refine_cover(&field, &mut refined, search.refine, search.scales);
-            versions.push(refined);
+            versions.push((refined, true));
         }
-        for code in versions {
+        for (code, refined) in versions {
             let iou =
                 field.attractor_iou(&code, search.score_points, mix_seed(stream, trial as u64));
-            if best.as_ref().is_none_or(|(b, _)| iou > *b) {
-                best = Some((iou, code));
-            }
+            scored.push(ScoredCover {
+                score: iou,
+                maps: code.iter().map(|m| to_inversion_frame(m, size)).collect(),
+                key: (key.clone(), refined),
+            });
         }
     }
-    let (_, code) = best.expect("at least one cover is scored");
-    Ok(code.iter().map(|m| to_inversion_frame(m, size)).collect())
+    Ok(scored)
 }
 
 /// A pixel-coordinate map in the inversion's coordinates: `x = 2u/S − 1`, `y = 1 − 2v/S`,

@@ -167,6 +167,13 @@ pub struct InversionConfig {
     /// run (the paper's; left out of the resolved table, so a run's id does not change).
     #[serde(default = "one", skip_serializing_if = "is_one")]
     pub best_of: u32,
+    /// Where the `best_of` runs start: `seeded` (each run's own start, drawn with its own
+    /// seed: three collage searches) or `ranked` (one collage search at `seed`, run `i`
+    /// starting from its `i`-th best start, [`ranked_starts`](crate::problems::image::init::ranked_starts)).
+    /// Starts that are not the collage's (`model.init` random or EM, `model.init_code`) are
+    /// always seeded. Written only when `ranked`.
+    #[serde(default, skip_serializing_if = "BestOfStarts::is_seeded")]
+    pub best_of_starts: BestOfStarts,
     /// Write a checkpoint every this many iterations (0: never).
     #[serde(default = "default_checkpoint_every")]
     pub checkpoint_every: u64,
@@ -198,6 +205,23 @@ fn default_checkpoint_every() -> u64 {
 
 fn one() -> u32 {
     1
+}
+
+/// Where the runs of a `best_of` inversion start (see [`InversionConfig::best_of_starts`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BestOfStarts {
+    /// Each run draws its own start with its own seed.
+    #[default]
+    Seeded,
+    /// One collage search; run `i` starts from its `i`-th best start.
+    Ranked,
+}
+
+impl BestOfStarts {
+    fn is_seeded(&self) -> bool {
+        *self == BestOfStarts::Seeded
+    }
 }
 
 fn is_one(n: &u32) -> bool {

@@ -8,6 +8,9 @@
 //! the right basin far more often; the image loss then corrects what similitudes cannot
 //! express (shears, reflections, anisotropic scales).
 
+use std::hash::{Hash, Hasher};
+use std::sync::{Arc, Mutex};
+
 use ifslab::chaos::{mix_seed, trajectory_rng};
 use ifslab::model::random::sample_code;
 use ifslab::model::{Affine2, IfsCode, library};
@@ -18,7 +21,7 @@ use rand_distr::StandardNormal;
 use crate::error::{Error, Result};
 use crate::problems::em::{EmConfig, PointSet, fit};
 use crate::problems::image::collage::{
-    CollageSearch, clamp_singular_values, collage_maps, start_scores,
+    CollageSearch, clamp_singular_values, collage_covers, start_scores,
 };
 use crate::problems::image::config::{InitKind, InversionConfig};
 use crate::problems::image::model::AnyModel;
@@ -108,14 +111,111 @@ pub fn collage_or_em(
     reflections: bool,
     refine: usize,
 ) -> Result<Vec<Affine2>> {
+    Ok(ranked_starts(target, size, k, seed, reflections, refine)?[0].clone())
+}
+
+/// The starts one collage search offers, best first: first [`collage_or_em`]'s (the
+/// collage's best cover or the EM start, whichever matches the ink better), then the other
+/// distinct covers of the search and the EM start, ordered by the same score (the IoU of
+/// their attractor with the ink), ties in the order the search scored them. At least one.
+///
+/// `best_of_starts = "ranked"` starts run `i` of a `best_of` inversion from the `i`-th
+/// (the last where there are fewer), so the runs differ in their arrangement rather than by
+/// a seed the search mostly does not feel, and the search is paid once: the ranking is kept
+/// for the last few (target, settings) asked for in the process, so runs that ask again
+/// (the other runs of the same inversion) take it from there. Deterministic for `seed`.
+pub fn ranked_starts(
+    target: &[f32],
+    size: usize,
+    k: usize,
+    seed: u64,
+    reflections: bool,
+    refine: usize,
+) -> Result<Ranking> {
+    let key = {
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        for v in target {
+            v.to_bits().hash(&mut h);
+        }
+        (h.finish(), target.len(), size, k, seed, reflections, refine)
+    };
+    if let Some((_, hit)) = RANKED.lock().unwrap().iter().find(|(k, _)| *k == key) {
+        return Ok(hit.clone());
+    }
     let search = CollageSearch {
         refine,
         ..CollageSearch::default()
     };
-    let collage = collage_maps(target, size, k, seed, &search)?;
+    let covers = collage_covers(target, size, k, seed, &search)?;
+    let mut best = 0;
+    for (i, c) in covers.iter().enumerate() {
+        if c.score > covers[best].score {
+            best = i;
+        }
+    }
     let em = em_initial_maps(target, size, k, seed, reflections)?;
-    let scores = start_scores(target, size, &[&em, &collage], seed, &search)?;
-    Ok(if scores[0] > scores[1] { em } else { collage })
+    let scores = start_scores(target, size, &[&em, &covers[best].maps], seed, &search)?;
+    let em_first = scores[0] > scores[1];
+    // The rest: the EM start (unless it is first) and every cover not equal to an earlier
+    // one (nor to the first start), by score.
+    let mut rest: Vec<(f64, Vec<Affine2>)> = Vec::new();
+    if !em_first {
+        rest.push((scores[0], em.clone()));
+    }
+    let mut seen = vec![];
+    if !em_first {
+        seen.push(covers[best].key.clone());
+    }
+    for c in &covers {
+        if !seen.contains(&c.key) {
+            seen.push(c.key.clone());
+            rest.push((c.score, c.maps.clone()));
+        }
+    }
+    rest.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let first = if em_first {
+        em
+    } else {
+        covers[best].maps.clone()
+    };
+    let ranked = Arc::new(
+        std::iter::once(first)
+            .chain(rest.into_iter().map(|(_, m)| m))
+            .collect::<Vec<_>>(),
+    );
+    let mut cache = RANKED.lock().unwrap();
+    if cache.len() >= RANKED_KEPT {
+        cache.remove(0);
+    }
+    cache.push((key, ranked.clone()));
+    Ok(ranked)
+}
+
+/// How many rankings [`ranked_starts`] keeps.
+const RANKED_KEPT: usize = 4;
+
+/// The key of a ranking: the target's hash and length, size, k, seed, reflections, refine.
+type RankedKey = (u64, usize, usize, usize, u64, bool, usize);
+
+/// A ranking of starts, best first.
+type Ranking = Arc<Vec<Vec<Affine2>>>;
+
+/// The rankings [`ranked_starts`] computed last (a cache: what it returns is the same with
+/// or without it).
+static RANKED: Mutex<Vec<(RankedKey, Ranking)>> = Mutex::new(Vec::new());
+
+/// The `rank`-th of [`ranked_starts`] (the last where there are fewer).
+fn ranked_start(
+    target: &[f32],
+    size: usize,
+    k: usize,
+    seed: u64,
+    reflections: bool,
+    refine: usize,
+    rank: usize,
+) -> Result<Vec<Affine2>> {
+    let ranked = ranked_starts(target, size, k, seed, reflections, refine)?;
+    Ok(ranked[rank.min(ranked.len() - 1)].clone())
 }
 
 /// Smallest and largest singular value a map of [`moment_refine`] may take.
@@ -296,22 +396,24 @@ pub fn initial_theta(
             InitKind::Collage => match (&cfg.model.start_size, &cfg.target.image) {
                 (Some(side), Some(path)) if *side != cfg.target.size => {
                     let picture = load_framed_picture(path, *side, cfg.target.polarity)?;
-                    collage_or_em(
+                    ranked_start(
                         &picture.values,
                         *side,
                         n,
                         seed,
                         cfg.model.em_reflections,
                         cfg.model.collage_refine,
+                        cfg.model.start_rank,
                     )?
                 }
-                _ => collage_or_em(
+                _ => ranked_start(
                     target,
                     cfg.target.size,
                     n,
                     seed,
                     cfg.model.em_reflections,
                     cfg.model.collage_refine,
+                    cfg.model.start_rank,
                 )?,
             },
             InitKind::Random if n >= 2 => sample_code(n, seed)?.maps,
@@ -335,6 +437,7 @@ pub fn initial_theta(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::problems::image::collage::collage_maps;
     use ifslab::model::Map2;
 
     /// `n` points of `maps`' attractor by a chaos game of the test's own (not the one the
@@ -570,5 +673,41 @@ mod tests {
             .unwrap();
         let again = one.install(|| collage_maps(&image, size, truth.len(), 3, &search).unwrap());
         assert_eq!(maps, again);
+
+        // The ranked starts: the first is the collage start's choice (here the collage's
+        // best cover), the rest distinct codes by the same score, the EM start among them;
+        // asked again, the one search's ranking comes back.
+        let ranked = ranked_starts(&image, size, truth.len(), 3, true, 0).unwrap();
+        assert_eq!(
+            ranked[0],
+            collage_or_em(&image, size, 6, 3, true, 0).unwrap()
+        );
+        assert_eq!(ranked[0], maps);
+        assert!(ranked.len() >= 3, "{} starts", ranked.len());
+        let em_maps = em_initial_maps(&image, size, 6, 3, true).unwrap();
+        assert!(ranked[1..].contains(&em_maps));
+        for (i, a) in ranked.iter().enumerate() {
+            for b in &ranked[i + 1..] {
+                assert_ne!(a, b, "a start is offered twice");
+            }
+        }
+        let scores: Vec<f64> = ranked
+            .iter()
+            .map(|m| start_scores(&image, size, &[m], 3, &search).unwrap()[0])
+            .collect();
+        assert!(
+            scores[1..].iter().all(|s| *s <= scores[0] + 0.02),
+            "{scores:?}"
+        );
+        let cached = ranked_starts(&image, size, truth.len(), 3, true, 0).unwrap();
+        assert!(Arc::ptr_eq(&ranked, &cached));
+        let fresh = one.install(|| {
+            RANKED.lock().unwrap().clear();
+            ranked_starts(&image, size, truth.len(), 3, true, 0).unwrap()
+        });
+        assert_eq!(
+            *fresh, *ranked,
+            "the same ranking on one thread, without the cache"
+        );
     }
 }

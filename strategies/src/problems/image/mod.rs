@@ -25,8 +25,8 @@ pub mod problem;
 pub mod run;
 pub mod target;
 
-pub use config::{InitKind, InversionConfig, StrategyConfig, TargetConfig};
-pub use init::initial_theta;
+pub use config::{BestOfStarts, InitKind, InversionConfig, StrategyConfig, TargetConfig};
+pub use init::{initial_theta, ranked_starts};
 pub use landscape::{Directions, Landscape, LandscapeConfig, landscape, slice};
 pub use model::{
     AffineModel, AnyModel, DrawOptions, ImageModel, MODELS, ModelEntry, SimilitudeModel,

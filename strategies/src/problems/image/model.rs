@@ -366,6 +366,13 @@ pub struct ModelConfig {
     /// (measured in robustness/README.md), so no recipe sets it. Written only when on.
     #[serde(skip_serializing_if = "is_zero")]
     pub collage_refine: usize,
+    /// Which of the collage search's starts the run takes, best first
+    /// ([`ranked_starts`](crate::problems::image::init::ranked_starts): 0, the default, is
+    /// the collage start or the EM start, whichever matches the ink better; 1, 2, … the
+    /// next distinct ones by the same score). Set per run by `best_of_starts = "ranked"`.
+    /// Written only when not 0.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub start_rank: usize,
     /// How the chaos game of the differentiable renderer picks maps: `uniform` (the
     /// chaotic-splatting paper's generator) or `determinant` (∝ |det M|, no floor: Learning
     /// Fractals). Evaluation renders always use |det| with a 1% floor.
@@ -428,6 +435,7 @@ impl Default for ModelConfig {
             em_affine: 0,
             start_size: None,
             collage_refine: 0,
+            start_rank: 0,
             probabilities: MapProbabilities::Uniform,
         }
     }

@@ -231,6 +231,7 @@ mod tests {
             seed: 1,
             iterations: 1,
             best_of: 1,
+            best_of_starts: Default::default(),
             checkpoint_every: 0,
             output: None,
             target: TargetConfig {

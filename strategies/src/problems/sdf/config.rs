@@ -29,6 +29,15 @@ pub struct SdfInitConfig {
     pub jitter: f64,
     /// Adam steps each candidate of `best` is followed for before they are compared.
     pub probe_steps: u64,
+    /// Whether `best` also tries the pattern stretched into the ink's box on both axes (see
+    /// [`candidate_starts`](crate::problems::sdf::candidate_starts)); on by default, written
+    /// only when off, so configs made before it resolve as they did.
+    #[serde(skip_serializing_if = "is_true")]
+    pub stretched: bool,
+}
+
+fn is_true(v: &bool) -> bool {
+    *v
 }
 
 impl Default for SdfInitConfig {
@@ -37,6 +46,7 @@ impl Default for SdfInitConfig {
             kind: SdfInit::Line,
             jitter: 0.0,
             probe_steps: PROBE_STEPS,
+            stretched: true,
         }
     }
 }
@@ -221,7 +231,7 @@ impl SdfConfig {
     ///
     /// | key | ifslab's (default) | the paper's (`paper = true`) |
     /// |---|---|---|
-    /// | `init.kind` | `best` (the best of five starts after a few coarse steps) | `line` |
+    /// | `init.kind` | `best` (the best of up to seven starts after a few coarse steps; `init.stretched` true) | `line` |
     /// | `stroke_sigma` | true (σ as wide as the picture's strokes) | false (`sigma`) |
     /// | `sigma_factors` | 1, 0.75, 0.5 (three fits, the one that agrees best with the target kept) | none |
     /// | `rescue_below` | 0.5 (two more fits where the kept one agrees on an IoU below it) | 0 |
@@ -400,7 +410,7 @@ impl SdfConfig {
         // The fit's work: every step draws (and differentiates) every pixel, and every
         // primitive moves; the best-of-starts probes come first.
         let probes = if self.init.kind == SdfInit::Best {
-            self.init.probe_steps.saturating_mul(5)
+            self.init.probe_steps.saturating_mul(7)
         } else {
             0
         };

@@ -24,6 +24,13 @@ use crate::problems::sdf::target::{INK, best_fit_line};
 /// and the right one after 80 (0.96); 80, 120 and 300 changed nothing else.
 pub const PROBE_STEPS: u64 = 80;
 
+/// The least ratio of the ink box's aspect to the pattern's at which [`candidate_starts`]
+/// adds the pattern stretched into the ink's box.
+pub const STRETCH_MIN_RATIO: f64 = 1.05;
+
+/// The largest such ratio: beyond it the pattern's box is too unlike the ink's to stretch.
+pub const STRETCH_MAX_RATIO: f64 = 4.0;
+
 /// How the control points start.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -36,8 +43,9 @@ pub enum SdfInit {
     /// The pattern's points as they are (a pattern file written in the target's frame).
     Given,
     /// The best of several starts ([`candidate_starts`]: the line, the pattern on the line
-    /// either way up, the pattern in the ink's box either way up), each followed for a few
-    /// coarse steps; the one whose loss is lowest after them starts the fit.
+    /// either way up, the pattern in the ink's box either way up, with its aspect kept and
+    /// stretched to fill the box), each followed for a few coarse steps; the one whose loss
+    /// is lowest after them starts the fit.
     Best,
 }
 
@@ -55,13 +63,16 @@ impl SdfInit {
 
 /// The starts [`SdfInit::Best`] chooses from, by name: `line` (the paper's), `pattern` (its
 /// own shape with its base on the best-fit line), `pattern_flipped` (the same mirrored across
-/// the line: a bump the other way), `box` (the pattern's bounding box fitted into the ink's)
-/// and `box_flipped` (mirrored left to right). Starts the pattern cannot take (a map that
+/// the line: a bump the other way), `box` (the pattern's bounding box fitted into the ink's,
+/// its aspect kept) and `box_flipped` (mirrored left to right), and with `stretched`
+/// `box_stretched` and `box_stretched_flipped` (the box filled on both axes, where the
+/// aspects differ). Starts the pattern cannot take (a map that
 /// stops contracting) are left out.
 pub fn candidate_starts(
     pattern: &Pattern,
     ink: &[f64],
     view: &SdfView,
+    stretched: bool,
 ) -> Result<Vec<(&'static str, Vec<f64>)>> {
     let mut out = Vec::new();
     let mut push = |name: &'static str, theta: Vec<f64>| {
@@ -88,25 +99,45 @@ pub fn candidate_starts(
                 [h[0].max(p[0]), h[1].max(p[1])],
             )
         });
-    let scale = ((hi[0] - lo[0]) / (phi[0] - plo[0]).max(1e-12))
-        .min((hi[1] - lo[1]) / (phi[1] - plo[1]).max(1e-12));
+    let per_axis = [
+        (hi[0] - lo[0]) / (phi[0] - plo[0]).max(1e-12),
+        (hi[1] - lo[1]) / (phi[1] - plo[1]).max(1e-12),
+    ];
+    let scale = per_axis[0].min(per_axis[1]);
+    let (c, pc) = (
+        [0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])],
+        [0.5 * (plo[0] + phi[0]), 0.5 * (plo[1] + phi[1])],
+    );
+    let placed = |s: [f64; 2], flip: f64| -> Vec<f64> {
+        pts.iter()
+            .flat_map(|p| {
+                [
+                    c[0] + flip * s[0] * (p[0] - pc[0]),
+                    c[1] + s[1] * (p[1] - pc[1]),
+                ]
+            })
+            .collect()
+    };
     if scale.is_finite() && scale > 0.0 {
-        let (c, pc) = (
-            [0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])],
-            [0.5 * (plo[0] + phi[0]), 0.5 * (plo[1] + phi[1])],
-        );
         for (name, flip) in [("box", 1.0), ("box_flipped", -1.0)] {
-            push(
-                name,
-                pts.iter()
-                    .flat_map(|p| {
-                        [
-                            c[0] + flip * scale * (p[0] - pc[0]),
-                            c[1] + scale * (p[1] - pc[1]),
-                        ]
-                    })
-                    .collect(),
-            );
+            push(name, placed([scale; 2], flip));
+        }
+    }
+    // The pattern stretched to fill the ink's box on both axes: a Koch curve whose apex is
+    // lower or higher than the template's spans the ink's width only this way (the box start
+    // above, its aspect kept, starts it contracted, and a thin curve's fit stays so). Only
+    // where the aspects differ by more than STRETCH_MIN_RATIO, and by no more than
+    // STRETCH_MAX_RATIO (a line-like pattern's box is no shape to stretch).
+    let ratio = per_axis[0].max(per_axis[1]) / scale;
+    if stretched
+        && scale.is_finite()
+        && scale > 0.0
+        && per_axis.iter().all(|s| s.is_finite())
+        && ratio > STRETCH_MIN_RATIO
+        && ratio <= STRETCH_MAX_RATIO
+    {
+        for (name, flip) in [("box_stretched", 1.0), ("box_stretched_flipped", -1.0)] {
+            push(name, placed(per_axis, flip));
         }
     }
     Ok(out)

@@ -27,6 +27,10 @@ pub struct SdfOutcome {
     pub returned: &'static str,
     /// The start.
     pub start: Vec<f64>,
+    /// Which start it is, where it is one of the starts the config names: `line`,
+    /// `pattern`, `given`, or for `best` the [`candidate_starts`] entry it equals (so a
+    /// resumed run names it too); none for a learned pattern's or a jittered start.
+    pub start_kind: Option<&'static str>,
     /// Iterations completed (including those before a resume).
     pub iterations: u64,
     /// Loss of the returned θ.
@@ -132,7 +136,12 @@ pub fn best_start(problem: &SdfProblem, cfg: &SdfConfig) -> Result<(&'static str
         .typed::<crate::optim::adam::AdamConfig>()
         .map_or(2e-3, |a| a.lr);
     let sigma = problem.sigma_at(0.0);
-    let candidates = candidate_starts(problem.pattern(), problem.target(), problem.view())?;
+    let candidates = candidate_starts(
+        problem.pattern(),
+        problem.target(),
+        problem.view(),
+        cfg.init.stretched,
+    )?;
     let mut best: Option<(f64, &'static str, Vec<f64>)> = None;
     for (name, start) in candidates {
         let Ok(loss) = probe(problem, &start, lr, sigma, cfg.init.probe_steps) else {
@@ -169,6 +178,29 @@ fn probe(problem: &SdfProblem, start: &[f64], lr: f64, sigma: f64, steps: u64) -
         }
     }
     Ok(problem.eval_with(&theta, false, sigma)?.loss)
+}
+
+/// The name of the start `start` of a fit of `cfg` (see [`SdfOutcome::start_kind`]).
+fn start_kind(
+    cfg: &SdfConfig,
+    problem: &SdfProblem,
+    start: &[f64],
+) -> Result<Option<&'static str>> {
+    if problem.learned().is_some() || cfg.init.jitter > 0.0 {
+        return Ok(None);
+    }
+    Ok(match cfg.init.kind {
+        SdfInit::Best => candidate_starts(
+            problem.pattern(),
+            problem.target(),
+            problem.view(),
+            cfg.init.stretched,
+        )?
+        .into_iter()
+        .find(|(_, t)| t.as_slice() == start)
+        .map(|(name, _)| name),
+        kind => Some(kind.name()),
+    })
 }
 
 /// Runs the fit `cfg` describes against `target` (ink in [0, 1], `size × size`), writing
@@ -230,9 +262,11 @@ pub fn run_sdf(
     } else {
         (start.clone(), "start", start_loss)
     };
+    let start_kind = start_kind(cfg, &problem, &start)?;
     Ok(SdfOutcome {
         theta,
         returned,
+        start_kind,
         start,
         iterations: state.get_iter(),
         loss,
