@@ -22,8 +22,13 @@ fn koch_truth() -> Pattern {
 
 /// The truth drawn by the renderer itself: the fit's minimum is exactly at the truth.
 fn koch_target(size: usize, depth: usize, sigma: f64) -> Vec<f64> {
+    pattern_target(&koch_truth(), size, depth, sigma)
+}
+
+/// `pattern` drawn by the renderer in the unit square.
+fn pattern_target(pattern: &Pattern, size: usize, depth: usize, sigma: f64) -> Vec<f64> {
     SdfRaster::render(
-        &koch_truth(),
+        pattern,
         &SdfView::unit_square(size),
         &SdfRenderConfig {
             depth,
@@ -346,16 +351,7 @@ fn a_low_koch_curve_starts_from_the_stretched_box_and_is_recovered() {
     let (size, depth, sigma) = (96, 4, 0.75);
     let truth = low_koch();
     let view = SdfView::unit_square(size);
-    let target = SdfRaster::render(
-        &truth,
-        &view,
-        &SdfRenderConfig {
-            depth,
-            cutoff: None,
-        },
-    )
-    .unwrap()
-    .image(sigma);
+    let target = pattern_target(&truth, size, depth, sigma);
     let koch = builtin("koch").unwrap();
     let starts = candidate_starts(&koch, &target, &view, true).unwrap();
     let width = |t: &[f64]| (t[8] - t[0]).abs();

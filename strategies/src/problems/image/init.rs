@@ -204,20 +204,6 @@ type Ranking = Arc<Vec<Vec<Affine2>>>;
 /// or without it).
 static RANKED: Mutex<Vec<(RankedKey, Ranking)>> = Mutex::new(Vec::new());
 
-/// The `rank`-th of [`ranked_starts`] (the last where there are fewer).
-fn ranked_start(
-    target: &[f32],
-    size: usize,
-    k: usize,
-    seed: u64,
-    reflections: bool,
-    refine: usize,
-    rank: usize,
-) -> Result<Vec<Affine2>> {
-    let ranked = ranked_starts(target, size, k, seed, reflections, refine)?;
-    Ok(ranked[rank.min(ranked.len() - 1)].clone())
-}
-
 /// Smallest and largest singular value a map of [`moment_refine`] may take.
 pub const MOMENT_SCALE_RANGE: (f64, f64) = (0.02, 0.95);
 
@@ -393,29 +379,28 @@ pub fn initial_theta(
                 }
                 maps
             }
-            InitKind::Collage => match (&cfg.model.start_size, &cfg.target.image) {
-                (Some(side), Some(path)) if *side != cfg.target.size => {
-                    let picture = load_framed_picture(path, *side, cfg.target.polarity)?;
-                    ranked_start(
-                        &picture.values,
+            InitKind::Collage => {
+                // The picture read again at `model.start_size` for the start alone.
+                let reread = match (&cfg.model.start_size, &cfg.target.image) {
+                    (Some(side), Some(path)) if *side != cfg.target.size => Some((
+                        load_framed_picture(path, *side, cfg.target.polarity)?.values,
                         *side,
-                        n,
-                        seed,
-                        cfg.model.em_reflections,
-                        cfg.model.collage_refine,
-                        cfg.model.start_rank,
-                    )?
-                }
-                _ => ranked_start(
-                    target,
-                    cfg.target.size,
+                    )),
+                    _ => None,
+                };
+                let (image, side) = reread
+                    .as_ref()
+                    .map_or((target, cfg.target.size), |(v, s)| (v.as_slice(), *s));
+                let ranked = ranked_starts(
+                    image,
+                    side,
                     n,
                     seed,
                     cfg.model.em_reflections,
                     cfg.model.collage_refine,
-                    cfg.model.start_rank,
-                )?,
-            },
+                )?;
+                ranked[cfg.model.start_rank.min(ranked.len() - 1)].clone()
+            }
             InitKind::Random if n >= 2 => sample_code(n, seed)?.maps,
             InitKind::Random => vec![Affine2::new(0.5, 0.0, 0.0, 0.5, 0.1, 0.1)],
         },
