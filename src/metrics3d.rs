@@ -226,34 +226,44 @@ impl<'a> CellGrid<'a> {
 
     /// The distance from `q` to the nearest point: cells in growing Chebyshev rings around
     /// `q`'s (clamped) cell, stopping once the best distance is within the ring's reach
-    /// (a point in ring `r + 1` or beyond is at least `r·h` away).
+    /// (a point in ring `r + 1` or beyond is at least `r·h` away) or the rings have covered
+    /// the grid. Only a ring's cells inside the grid are visited (its faces in full, its
+    /// inner rows at their two ends), so a query far from the points, or a flat set, costs
+    /// at most one pass over the cells.
     fn nearest(&self, q: [f64; 3]) -> f64 {
+        let n: [i64; 3] = std::array::from_fn(|k| self.n[k] as i64);
         let c: [i64; 3] = std::array::from_fn(|k| {
-            (((q[k] - self.lo[k]) / self.h).floor() as i64).clamp(0, self.n[k] as i64 - 1)
+            (((q[k] - self.lo[k]) / self.h).floor() as i64).clamp(0, n[k] - 1)
         });
+        // The smallest squared distance from `q` to a point of cell (x, y, z).
+        let cell_min = |x: i64, y: i64, z: i64| {
+            let cell = ((z as usize * self.n[1] + y as usize) * self.n[0]) + x as usize;
+            self.order[self.start[cell]..self.start[cell + 1]]
+                .iter()
+                .map(|&j| {
+                    let p = self.points[j as usize];
+                    (0..3).map(|k| (p[k] - q[k]) * (p[k] - q[k])).sum::<f64>()
+                })
+                .fold(f64::INFINITY, f64::min)
+        };
         let mut best = f64::INFINITY;
-        let max_ring = *self.n.iter().max().unwrap_or(&1) as i64;
-        for r in 0..=max_ring {
-            for z in c[2] - r..=c[2] + r {
-                for y in c[1] - r..=c[1] + r {
-                    for x in c[0] - r..=c[0] + r {
-                        let on_ring =
-                            (x - c[0]).abs() == r || (y - c[1]).abs() == r || (z - c[2]).abs() == r;
-                        if !on_ring
-                            || x < 0
-                            || y < 0
-                            || z < 0
-                            || x >= self.n[0] as i64
-                            || y >= self.n[1] as i64
-                            || z >= self.n[2] as i64
-                        {
-                            continue;
+        // The farthest ring that still holds a cell of the grid.
+        let last = (0..3).map(|k| c[k].max(n[k] - 1 - c[k])).max().unwrap_or(0);
+        for r in 0..=last {
+            let lo: [i64; 3] = std::array::from_fn(|k| (c[k] - r).max(0));
+            let hi: [i64; 3] = std::array::from_fn(|k| (c[k] + r).min(n[k] - 1));
+            for z in lo[2]..=hi[2] {
+                let z_face = (z - c[2]).abs() == r;
+                for y in lo[1]..=hi[1] {
+                    if z_face || (y - c[1]).abs() == r {
+                        for x in lo[0]..=hi[0] {
+                            best = best.min(cell_min(x, y, z));
                         }
-                        let cell = ((z as usize * self.n[1] + y as usize) * self.n[0]) + x as usize;
-                        for &j in &self.order[self.start[cell]..self.start[cell + 1]] {
-                            let p = self.points[j as usize];
-                            let d = (0..3).map(|k| (p[k] - q[k]) * (p[k] - q[k])).sum::<f64>();
-                            best = best.min(d);
+                    } else {
+                        for x in [c[0] - r, c[0] + r] {
+                            if (0..n[0]).contains(&x) {
+                                best = best.min(cell_min(x, y, z));
+                            }
                         }
                     }
                 }
@@ -281,15 +291,29 @@ pub fn chamfer_distance(a: &[[f64; 3]], b: &[[f64; 3]]) -> Result<f64> {
         ));
     }
     let one_way = |from: &[[f64; 3]], to: &[[f64; 3]]| {
-        let grid = CellGrid::new(to);
-        let sum: f64 = from
-            .par_iter()
-            .with_min_len(1024)
-            .map(|&q| grid.nearest(q))
-            .collect::<Vec<f64>>()
-            .iter()
-            .sum();
-        sum / from.len() as f64
+        nearest_among(from, to).iter().sum::<f64>() / from.len() as f64
     };
     Ok(0.5 * (one_way(a, b) + one_way(b, a)))
+}
+
+/// For each point of `from`, the distance to its nearest point of `to` (exact, through a
+/// uniform grid of cells), in `from`'s order. Refuses an empty `to` and non-finite points.
+pub fn nearest_distances(from: &[[f64; 3]], to: &[[f64; 3]]) -> Result<Vec<f64>> {
+    check_points("query points", from)?;
+    check_points("reference points", to)?;
+    if to.is_empty() {
+        return Err(Error::Empty(
+            "nearest distances need at least one reference point".into(),
+        ));
+    }
+    Ok(nearest_among(from, to))
+}
+
+/// [`nearest_distances`] of checked, non-empty sets.
+fn nearest_among(from: &[[f64; 3]], to: &[[f64; 3]]) -> Vec<f64> {
+    let grid = CellGrid::new(to);
+    from.par_iter()
+        .with_min_len(1024)
+        .map(|&q| grid.nearest(q))
+        .collect()
 }

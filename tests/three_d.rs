@@ -12,7 +12,7 @@ use std::path::Path;
 
 use ifslab::Error;
 use ifslab::chaos::{ChaosGame, Tape3, points3};
-use ifslab::metrics3d::{VoxelBox, chamfer_distance, voxel_iou, voxel_iou_in};
+use ifslab::metrics3d::{VoxelBox, chamfer_distance, nearest_distances, voxel_iou, voxel_iou_in};
 use ifslab::model::map3::{
     Affine3, DiffMap3, Map3, SVD3_PARAMS, Similitude3, SvdMap3, flat_params, set_flat_params,
     sierpinski_tetrahedron, vjp_check,
@@ -773,6 +773,36 @@ fn chamfer_distance_is_exact_and_symmetric() {
     assert!((chamfer_distance(&[[0.0; 3]], &[[3.0, 4.0, 0.0]]).unwrap() - 5.0).abs() < 1e-15);
     assert!(chamfer_distance(&a, &[]).is_err());
     assert!(chamfer_distance(&[[f64::INFINITY, 0.0, 0.0]], &a).is_err());
+}
+
+#[test]
+fn nearest_distances_are_exact_on_flat_sets_and_far_queries() {
+    // A flat set (z = 0, as 2-D clouds are measured) whose points crowd into one corner
+    // but for a far few, and queries around it and far away: the grid of the reference
+    // set is mostly empty cells, the case where the ring search once ran for minutes.
+    let mut reference: Vec<[f64; 3]> = (0..3000)
+        .map(|i| {
+            let t = i as f64;
+            [(t * 0.37).sin() * 0.01, (t * 0.61).cos() * 0.01, 0.0]
+        })
+        .collect();
+    reference.extend([[50.0, 40.0, 0.0], [-30.0, 60.0, 0.0]]);
+    let queries: Vec<[f64; 3]> = (0..2000)
+        .map(|i| {
+            let t = i as f64 * 1.3;
+            [(t * 0.29).cos() * 20.0, (t * 0.47).sin() * 20.0, 0.0]
+        })
+        .chain([[1e4, -1e4, 0.0], [0.0, 0.0, 5.0]])
+        .collect();
+    let got = nearest_distances(&queries, &reference).unwrap();
+    for (q, d) in queries.iter().zip(&got) {
+        let want = reference
+            .iter()
+            .map(|p| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt())
+            .fold(f64::INFINITY, f64::min);
+        assert!((d - want).abs() < 1e-12, "{q:?}: {d} vs {want}");
+    }
+    assert!(nearest_distances(&queries, &[]).is_err());
 }
 
 #[test]

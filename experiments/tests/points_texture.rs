@@ -58,15 +58,72 @@ fn a_points_config_runs_end_to_end() {
     let ll = best["heldout_log_likelihood"].as_f64().unwrap();
     let gmm = best["best_gmm_heldout_log_likelihood"].as_f64().unwrap();
     assert!(ll > gmm + 0.3, "EM {ll} vs GMM {gmm}");
+    // Of the two runs the kept one is the attractor closest to the cloud, both ways.
+    assert_eq!(best["kept_by"], "closeness", "{s}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let chamfer = |r: &serde_json::Value| {
+        r["closeness"]["data_to_fit"].as_f64().unwrap()
+            + r["closeness"]["fit_to_data"].as_f64().unwrap()
+    };
+    let runs = report["em"]["runs"].as_array().unwrap();
+    let closest = (0..runs.len())
+        .min_by(|&a, &b| chamfer(&runs[a]).total_cmp(&chamfer(&runs[b])))
+        .unwrap();
+    assert_eq!(best["run"], closest, "{report}");
     // The code is the best run's, and the written config is the same run anywhere.
     let code = ifslab::model::IfsCode::load(out.join("code.json")).unwrap();
     assert_eq!(code.maps.len(), 3);
     let written = std::fs::read_to_string(out.join("config.toml")).unwrap();
     assert!(written.starts_with("problem = \"points\""), "{written}");
     assert!(written.contains("update = \"all-positions\""), "{written}");
+    assert!(written.contains("keep = \"closeness\""), "{written}");
     let back = RunConfig::load(&out.join("config.toml")).unwrap();
     let orig = RunConfig::load(&cfg).unwrap();
     assert_eq!(back.to_table().unwrap(), orig.to_table().unwrap());
+}
+
+#[test]
+fn a_four_dimensional_cloud_keeps_its_run_by_likelihood() {
+    // The closeness is measured in up to three dimensions: 4-D data fall back to the
+    // likelihood, and the run says so.
+    let tmp = tempfile::tempdir().unwrap();
+    let rows: String = (0..600)
+        .map(|i| {
+            let t = i as f64;
+            format!(
+                "{},{},{},{}\n",
+                (t * 0.37).sin(),
+                (t * 0.61).cos(),
+                (t * 0.13).fract(),
+                (t * 0.29).sin() * 0.5
+            )
+        })
+        .collect();
+    std::fs::write(tmp.path().join("cloud.csv"), rows).unwrap();
+    let (ok, msg) = ifslab_in(
+        tmp.path(),
+        &[
+            "fit-points",
+            "cloud.csv",
+            "--k",
+            "2",
+            "--depth",
+            "2",
+            "--pool",
+            "2",
+            "--iters",
+            "20",
+            "--runs",
+            "2",
+            "-o",
+            "out",
+        ],
+    );
+    assert!(ok, "{msg}");
+    let s = summary(&tmp.path().join("out"));
+    assert_eq!(s["best"]["kept_by"], "likelihood", "{s}");
+    assert!(s["best"]["closeness"].is_null(), "{s}");
 }
 
 /// Crops a `side`² grey texture out of the shipped brick texture.

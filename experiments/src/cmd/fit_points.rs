@@ -43,6 +43,14 @@ pub enum SelectBy {
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum Keep {
+    /// The attractor closest to the cloud, both ways (default).
+    Closeness,
+    /// The best held-out log-likelihood (with --paper).
+    Likelihood,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
 pub enum PreselectSchedule {
     /// Depths 1, 2, …, --preselect-depth in turn (default).
     Curriculum,
@@ -120,10 +128,15 @@ pub struct Args {
     /// no re-orientation or word search, no recentring.
     #[arg(long, conflicts_with_all = ["preselect_schedule", "preselect_by", "reorient", "reorient_every", "no_recentre", "update", "no_reflections", "no_words", "trim_outliers"])]
     pub paper: bool,
-    /// Independent runs; the one with the best held-out log-likelihood is kept [default: 8
-    /// for up to three maps, 4 for four and five, else 1; with --paper 1].
+    /// Independent runs, one kept (--keep) [default: 8 for up to three maps, 4 for four
+    /// and five, else 1; with --paper 1].
     #[arg(long)]
     pub runs: Option<usize>,
+    /// Which of the runs is kept: the one whose attractor lies closest to the cloud (the
+    /// trimmed mean distances from the data to 20,000 attractor points and back), or the
+    /// best held-out log-likelihood [default: closeness; with --paper likelihood].
+    #[arg(long, value_enum)]
+    pub keep: Option<Keep>,
     /// Fraction of the points held out for evaluation.
     #[arg(long, default_value_t = 0.1)]
     pub heldout: f64,
@@ -194,6 +207,10 @@ impl Args {
             paper: self.paper,
             eval_points: self.eval_points,
             runs: self.runs,
+            keep: self.keep.map(|k| match k {
+                Keep::Closeness => points::KeepBy::Closeness,
+                Keep::Likelihood => points::KeepBy::Likelihood,
+            }),
             heldout: self.heldout,
             eval_every: self.eval_every,
             seed: self.seed,

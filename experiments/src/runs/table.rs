@@ -53,7 +53,8 @@ pub fn set_dotted(table: &mut toml::Table, key: &str, value: toml::Value) -> any
 /// written: one written before recipes existed has no `paper` key and meant the paper's
 /// defaults ([`recipe::mark_legacy`]); a points config writes `reflections`, `words` and
 /// `trim_outliers` only when they are on, so absent they were off (and absent from every
-/// run made before they existed).
+/// run made before they existed), and `keep` only when it is the closeness, so absent the
+/// likelihood kept the run.
 pub fn read_resolved(path: &Path) -> anyhow::Result<toml::Table> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
@@ -68,6 +69,9 @@ pub fn read_resolved(path: &Path) -> anyhow::Result<toml::Table> {
         for key in ["reflections", "words", "trim_outliers"] {
             table.entry(key).or_insert(toml::Value::Boolean(false));
         }
+        table
+            .entry("keep")
+            .or_insert(toml::Value::String("likelihood".into()));
     }
     Ok(table)
 }

@@ -22,6 +22,17 @@ pub enum PreselectSchedule {
     Fixed,
 }
 
+/// Which of a run's independent fits is kept.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum KeepBy {
+    /// The best held-out log-likelihood (the mixture of Gaussians at depth D).
+    Likelihood,
+    /// The attractor closest to the data, both ways ([`super::closeness`]); fits of data
+    /// of more than three dimensions are ranked by the likelihood.
+    Closeness,
+}
+
 /// A points run: what `ifslab fit-points` takes as flags, one key per flag (`--sweep-pool`
 /// is `sweep_pool`, `--no-recentre` is `recentre = false`). Every default is ifslab's;
 /// `paper = true` runs the paper's algorithm, and then the six choices it fixes
@@ -87,9 +98,14 @@ pub struct PointsConfig {
     pub paper: bool,
     /// Training points that score candidates and re-orientations (0 = all).
     pub eval_points: usize,
-    /// Independent runs; the one with the best held-out log-likelihood is kept [default: 8
+    /// Independent runs; one is kept, as `keep` says [default: 8
     /// for up to three maps, 4 for four and five, else 1 ([`default_runs`]); paper: 1].
     pub runs: Option<usize>,
+    /// Which of the runs is kept [default: closeness; paper: likelihood]. Written only
+    /// when it is closeness and there is more than one run, so a run folder written before
+    /// it existed reads as the run it was.
+    #[serde(skip_serializing_if = "keeps_by_likelihood")]
+    pub keep: Option<KeepBy>,
     /// Fraction of the points held out for evaluation.
     pub heldout: f64,
     /// Evaluate the held-out log-likelihood every this many iterations.
@@ -139,6 +155,7 @@ impl Default for PointsConfig {
             paper: false,
             eval_points: 1000,
             runs: None,
+            keep: None,
             heldout: 0.1,
             eval_every: 10,
             seed: 0,
@@ -155,6 +172,10 @@ impl Default for PointsConfig {
 
 fn not_true(v: &Option<bool>) -> bool {
     *v != Some(true)
+}
+
+fn keeps_by_likelihood(v: &Option<KeepBy>) -> bool {
+    *v != Some(KeepBy::Closeness)
 }
 
 /// The six choices `paper = true` fixes, as (schedule, by, reorient, every, recentre, update).
@@ -193,7 +214,7 @@ pub fn default_reorient(k: usize, depth: usize) -> usize {
     (REORIENT_BUDGET / per).clamp(DEFAULT_REORIENT, 4096)
 }
 
-/// ifslab's independent runs for K maps, the best by held-out likelihood kept: 8 for up to
+/// ifslab's independent runs for K maps, one kept (`keep`): 8 for up to
 /// three maps, 4 for four and five (the robustness suite's range), 1 from six on. Eight runs
 /// of two or three maps cost about what four runs of five do: on the three tuning splits'
 /// 48 two- and three-map 3-D clouds they recovered 47 against 45 with four (mean agreement
@@ -317,6 +338,7 @@ impl PointsConfig {
         c.reflections = Some(self.reflections());
         c.words = Some(self.words());
         c.runs = Some(self.runs());
+        c.keep = Some(self.keep());
         c.trim_outliers = Some(self.trim_outliers());
         Ok(c)
     }
@@ -336,6 +358,18 @@ impl PointsConfig {
     pub fn runs(&self) -> usize {
         self.runs
             .unwrap_or_else(|| if self.paper { 1 } else { default_runs(self.k) })
+    }
+
+    /// Which run is kept, as given or by the recipe; one run is kept whatever the rule.
+    pub fn keep(&self) -> KeepBy {
+        if self.runs() == 1 {
+            return KeepBy::Likelihood;
+        }
+        self.keep.unwrap_or(if self.paper {
+            KeepBy::Likelihood
+        } else {
+            KeepBy::Closeness
+        })
     }
 
     /// Whether the word search runs, as given or by the recipe.
@@ -455,5 +489,51 @@ impl PointsConfig {
             "{PROBLEM_KEY} = \"points\"\n{}",
             toml::to_string_pretty(&self.resolved()?)?
         ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn written(cfg: PointsConfig) -> String {
+        toml::to_string(&cfg.resolved().unwrap()).unwrap()
+    }
+
+    #[test]
+    fn the_kept_run_is_named_only_where_the_closeness_keeps_it() {
+        let base = PointsConfig {
+            data: "ifs:sierpinski".into(),
+            ..PointsConfig::default()
+        };
+        // Eight runs of three maps: kept by closeness, and the config says so.
+        assert_eq!(base.keep(), KeepBy::Closeness);
+        assert!(written(base.clone()).contains("keep = \"closeness\""));
+        // One run, the paper's recipe or the likelihood asked for: written as before the
+        // key existed, so those runs keep their ids.
+        for cfg in [
+            PointsConfig {
+                runs: Some(1),
+                ..base.clone()
+            },
+            PointsConfig {
+                paper: true,
+                ..base.clone()
+            },
+            PointsConfig {
+                keep: Some(KeepBy::Likelihood),
+                ..base.clone()
+            },
+        ] {
+            assert_eq!(cfg.keep(), KeepBy::Likelihood);
+            assert!(!written(cfg).contains("keep"));
+        }
+        // A closeness asked for with one run is no choice at all.
+        let one = PointsConfig {
+            runs: Some(1),
+            keep: Some(KeepBy::Closeness),
+            ..base
+        };
+        assert_eq!(one.keep(), KeepBy::Likelihood);
     }
 }

@@ -3,7 +3,8 @@
 //!
 //! A run loads a point cloud (CSV/text or `.npy`, any dimension) or samples one from a code
 //! (`ifs:NAME`), holds out a share of it, and then either
-//! - fits `runs` seeded EM runs and keeps the one with the best held-out log-likelihood,
+//! - fits `runs` seeded EM runs and keeps the one whose attractor lies closest to the
+//!   cloud ([`closeness`]; or the best held-out log-likelihood, `keep = "likelihood"`),
 //!   writing `code.json`, `history.csv`, `loglik.png`, `scatter.png` (2-D/3-D), `render.png`
 //!   (2-D) and `report.json` with Gaussian-mixture baselines in the same units; or
 //! - with `sweep_pool`, measures the proportion of converged runs per pre-selection pool size
@@ -21,6 +22,7 @@
 //! - P. Bloem and S. de Rooij, *An Expectation-Maximization Algorithm for the Fractal
 //!   Inverse Problem*, arXiv:1706.03149, 2017.
 
+pub mod closeness;
 mod config;
 pub mod fits;
 mod outputs;
@@ -39,7 +41,7 @@ use serde_json::json;
 use crate::codes::resolve_code;
 use crate::progress::Progress;
 use crate::runs::inversion::CONFIG_FILE;
-pub use config::{PointsConfig, PreselectSchedule};
+pub use config::{KeepBy, PointsConfig, PreselectSchedule};
 use truth::Truth;
 
 /// The data of a run: all points, the training and held-out parts, and where they came from.
@@ -141,6 +143,12 @@ pub struct BestFit {
     /// Plain IoU of the coverage masks compared with `truth` (no tolerance).
     #[serde(default)]
     pub truth_iou: Option<f64>,
+    /// How close its attractor lies to the data, both ways (older summaries have none).
+    #[serde(default)]
+    pub closeness: Option<closeness::Closeness>,
+    /// The rule that kept it among the runs (older summaries: the likelihood).
+    #[serde(default)]
+    pub kept_by: Option<KeepBy>,
     /// The best Gaussian mixture's held-out log-likelihood among the baselines.
     pub best_gmm_heldout_log_likelihood: Option<f64>,
     /// Each Gaussian-mixture baseline's held-out log-likelihood, by covariance and
@@ -319,7 +327,7 @@ fn run_label(r: usize) -> String {
     format!("run-{r:03}")
 }
 
-/// `runs` seeded EM fits, one after the other; the best held-out likelihood is kept and
+/// `runs` seeded EM fits, one after the other; the one `cfg.keep()` ranks first is kept and
 /// written out with the GMM baselines.
 fn fit_runs(
     cfg: &PointsConfig,
@@ -331,8 +339,14 @@ fn fit_runs(
 ) -> anyhow::Result<PointsSummary> {
     let (train, heldout) = (&data.train, data.heldout());
     let mut runs = Vec::new();
-    let mut best: Option<(f64, usize, EmFit)> = None;
+    // The kept run: its held-out score, its rank under `cfg.keep()` (lower is better), index, fit.
+    let mut best: Option<(f64, f64, usize, EmFit)> = None;
     let mut resumed = 0;
+    // The closeness needs data of at most three dimensions; the likelihood ranks the rest.
+    let kept_by = match cfg.keep() {
+        KeepBy::Closeness if data.all.dim() <= 3 => KeepBy::Closeness,
+        _ => KeepBy::Likelihood,
+    };
     for r in 0..cfg.runs() {
         let em = cfg.em_config(mix_seed(cfg.seed, r as u64), cfg.pool);
         let label = run_label(r);
@@ -362,8 +376,10 @@ fn fit_runs(
         let score = result.model.mean_log_likelihood(heldout.unwrap_or(train))?;
         let train_ll = result.model.mean_log_likelihood(train)?;
         let against = truth.map(|t| t.compare(&result.model)).transpose()?;
+        let close = closeness::closeness(&result.model, &data.all, 0)?;
         progress.message(&format!(
-            "run {r}: held-out {score:.4} nats/point, train {train_ll:.4}, v_D {:.3}, mean depth {:.2}, {}converged{}, {secs:.1} s",
+            "run {r}: held-out {score:.4} nats/point, train {train_ll:.4}, {}v_D {:.3}, mean depth {:.2}, {}converged{}, {secs:.1} s",
+            close.map_or(String::new(), |c| format!("closeness {:.4}, ", c.chamfer())),
             result.model.deepest_weight(),
             result.model.mean_depth(),
             if result.converged { "" } else { "not " },
@@ -376,22 +392,26 @@ fn fit_runs(
         runs.push(json!({
             "truth_agreement": against.map(|a| a.agreement), "truth_iou": against.map(|a| a.iou),
             "truth_scale_error": against.map(|a| a.scale_error),
-            "run": r, "seed": em.seed, "heldout_log_likelihood": score,
+            "run": r, "seed": em.seed, "heldout_log_likelihood": score, "closeness": close,
             "train_log_likelihood": train_ll, "converged": result.converged,
             "deepest_weight": result.model.deepest_weight(), "mean_depth": result.model.mean_depth(),
             "chosen_candidate": result.chosen, "seconds": secs,
             "repairs": {"dead_components": repairs[0], "undetermined_rotations": repairs[1],
                         "clamped_scales": repairs[2], "non_finite": repairs[3]},
         }));
-        if best.as_ref().is_none_or(|b| score > b.0) {
-            best = Some((score, r, result));
+        let rank = match (kept_by, close) {
+            (KeepBy::Closeness, Some(c)) => c.chamfer(),
+            _ => -score,
+        };
+        if best.as_ref().is_none_or(|b| rank < b.1) {
+            best = Some((score, rank, r, result));
         }
     }
     let converged_fits = runs
         .iter()
         .filter(|r| r["converged"] == json!(true))
         .count();
-    let (best_score, best_run, result) = best.expect("at least one run");
+    let (best_score, _, best_run, result) = best.expect("at least one run");
     let out = outputs::write_fit(
         cfg, dir, data, &result, best_score, best_run, runs, started, progress,
     )?;
@@ -415,6 +435,8 @@ fn fit_runs(
             deepest_weight: Some(result.model.deepest_weight()),
             truth_agreement: against.map(|a| a.agreement),
             truth_iou: against.map(|a| a.iou),
+            closeness: closeness::closeness(&result.model, &data.all, 0)?,
+            kept_by: Some(kept_by),
             best_gmm_heldout_log_likelihood: out.best_gmm,
             gmm: out.gmm,
         }),
