@@ -157,6 +157,9 @@ pub struct Summary {
     /// against that code ([`truth_score`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub truth: Option<TruthScore>,
+    /// What the IoU polish did (`model.polish`), where it ran.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub polish: Option<ifslab_strategies::problems::image::polish::Polished>,
     /// With several whole runs (`best_of`), every one of them, in the order they ran; the
     /// one with the highest `ssim` is the run's result (the first of equals), and every
     /// other number of this summary is its.
@@ -520,6 +523,7 @@ fn run_one(
         selection: outcome.selection.clone(),
         suite,
         truth,
+        polish: outcome.polished.clone(),
         legs: Vec::new(),
     };
     ifslab::io::write_atomic(

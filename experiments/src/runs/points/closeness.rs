@@ -8,10 +8,11 @@
 //! drawn where the cloud is empty?), each a trimmed mean so that a cloud's outliers and the
 //! sparse edges of a sample do not decide it.
 
-use ifslab::chaos::{ChaosGame, generate_nd};
 use ifslab::metrics3d::nearest_distances;
 use ifslab_strategies::problems::em::{EmModel, PointSet};
 use serde::{Deserialize, Serialize};
+
+use super::truth::attractor_points;
 
 /// Attractor points drawn for the comparison.
 const ATTRACTOR_POINTS: usize = 20_000;
@@ -59,16 +60,7 @@ pub fn closeness(model: &EmModel, data: &PointSet, seed: u64) -> anyhow::Result<
         return Ok(None);
     }
     let code = model.to_code(None)?;
-    let probs = code.evaluation_probabilities()?;
-    let per = 1000usize;
-    let game = ChaosGame {
-        trajectories: ATTRACTOR_POINTS.div_ceil(per),
-        length: per + 30,
-        warmup: 30,
-        start_half_width: 1.0,
-        seed,
-    };
-    let fit = as_3d(&generate_nd(&game, &code.maps, &probs)?, dim);
+    let fit = as_3d(&attractor_points(&code, ATTRACTOR_POINTS, seed)?, dim);
     let pts = as_3d(data.as_slice(), dim);
     let radius = data.rms_radius().max(1e-12);
     Ok(Some(Closeness {
@@ -84,15 +76,7 @@ mod tests {
     /// Points of the built-in `name`'s attractor, with `outliers` far points added.
     fn cloud(name: &str, n: usize, outliers: usize) -> PointSet {
         let code = crate::codes::resolve_code(name).unwrap();
-        let probs = code.evaluation_probabilities().unwrap();
-        let game = ChaosGame {
-            trajectories: n.div_ceil(100),
-            length: 130,
-            warmup: 30,
-            start_half_width: 1.0,
-            seed: 7,
-        };
-        let mut flat = generate_nd(&game, &code.maps, &probs).unwrap();
+        let mut flat = attractor_points(&code, n, 7).unwrap();
         flat.truncate(2 * n);
         for i in 0..outliers {
             flat.extend([3.0 + i as f64 * 0.1, -2.0]);

@@ -339,8 +339,9 @@ fn fit_runs(
 ) -> anyhow::Result<PointsSummary> {
     let (train, heldout) = (&data.train, data.heldout());
     let mut runs = Vec::new();
-    // The kept run: its held-out score, its rank under `cfg.keep()` (lower is better), index, fit.
-    let mut best: Option<(f64, f64, usize, EmFit)> = None;
+    // The kept run: its held-out score, its rank under `cfg.keep()` (lower is better), its
+    // closeness, index, fit.
+    let mut best: Option<(f64, f64, Option<closeness::Closeness>, usize, EmFit)> = None;
     let mut resumed = 0;
     // The closeness needs data of at most three dimensions; the likelihood ranks the rest.
     let kept_by = match cfg.keep() {
@@ -404,14 +405,14 @@ fn fit_runs(
             _ => -score,
         };
         if best.as_ref().is_none_or(|b| rank < b.1) {
-            best = Some((score, rank, r, result));
+            best = Some((score, rank, close, r, result));
         }
     }
     let converged_fits = runs
         .iter()
         .filter(|r| r["converged"] == json!(true))
         .count();
-    let (best_score, _, best_run, result) = best.expect("at least one run");
+    let (best_score, _, best_close, best_run, result) = best.expect("at least one run");
     let out = outputs::write_fit(
         cfg, dir, data, &result, best_score, best_run, runs, started, progress,
     )?;
@@ -435,7 +436,7 @@ fn fit_runs(
             deepest_weight: Some(result.model.deepest_weight()),
             truth_agreement: against.map(|a| a.agreement),
             truth_iou: against.map(|a| a.iou),
-            closeness: closeness::closeness(&result.model, &data.all, 0)?,
+            closeness: best_close,
             kept_by: Some(kept_by),
             best_gmm_heldout_log_likelihood: out.best_gmm,
             gmm: out.gmm,

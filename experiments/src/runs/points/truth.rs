@@ -77,12 +77,14 @@ fn coverage(code: &IfsCode, view: View, seed: u64) -> anyhow::Result<(Vec<bool>,
     ))
 }
 
-/// [`TRUTH_POINTS`] points of a code's attractor (any dimension), by the chaos game.
-fn attractor_points(code: &IfsCode, seed: u64) -> anyhow::Result<Vec<f64>> {
+/// About `n` points (a whole number of trajectories of 1000) of a code's attractor (any
+/// dimension, flat), by the chaos game from `seed` with the evaluation renders'
+/// probabilities.
+pub(crate) fn attractor_points(code: &IfsCode, n: usize, seed: u64) -> anyhow::Result<Vec<f64>> {
     let probs = code.evaluation_probabilities()?;
     let per = 1000usize;
     let game = ChaosGame {
-        trajectories: (TRUTH_POINTS as usize).div_ceil(per),
+        trajectories: n.div_ceil(per),
         length: per + 30,
         warmup: 30,
         start_half_width: 1.0,
@@ -134,7 +136,7 @@ impl Truth {
             let (mask, window) = coverage(&code, View::Fit, 0)?;
             Cover::Pixels { window, mask }
         } else {
-            let pts = attractor_points(&code, 0)?;
+            let pts = attractor_points(&code, TRUTH_POINTS as usize, 0)?;
             let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
             for p in pts.chunks_exact(3) {
                 for k in 0..3 {
@@ -173,7 +175,11 @@ impl Truth {
                 side,
                 mask: truth,
             } => {
-                let mask = voxels(&attractor_points(&code, 0)?, lo, *side);
+                let mask = voxels(
+                    &attractor_points(&code, TRUTH_POINTS as usize, 0)?,
+                    lo,
+                    *side,
+                );
                 (
                     tolerant_agreement_3d(truth, &mask, TRUTH_VOXELS),
                     plain_iou(truth, &mask),

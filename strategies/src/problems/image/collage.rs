@@ -93,10 +93,10 @@ impl Default for CollageSearch {
 }
 
 /// A map in pixel coordinates (x right, y down, pixel centres at `i + ½`).
-#[derive(Clone, Copy, Debug)]
-struct PixelMap {
-    g: Matrix2<f64>,
-    h: Vector2<f64>,
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct PixelMap {
+    pub(crate) g: Matrix2<f64>,
+    pub(crate) h: Vector2<f64>,
 }
 
 impl PixelMap {
@@ -107,16 +107,17 @@ impl PixelMap {
 
 /// The target as the search sees it: its ink mask, the distance to the ink and its
 /// gradient, and the ink pixels' centres.
-struct Field {
+pub(crate) struct Field {
     size: usize,
-    ink: Vec<bool>,
+    pub(crate) ink: Vec<bool>,
     dist: Vec<f32>,
     grad: Vec<[f32; 2]>,
-    points: Vec<Vector2<f64>>,
+    /// The ink pixels' centres.
+    pub(crate) points: Vec<Vector2<f64>>,
 }
 
 impl Field {
-    fn new(target: &[f32], size: usize, ink_level: f64) -> Result<Field> {
+    pub(crate) fn new(target: &[f32], size: usize, ink_level: f64) -> Result<Field> {
         let max = target.iter().copied().fold(0.0f32, f32::max);
         if max.is_nan() || max <= 0.0 {
             return Err(Error::InvalidInput(
@@ -223,20 +224,12 @@ impl Field {
 
     /// IoU of the attractor of `maps` (rasterised at the target's pixels) with the ink.
     fn attractor_iou(&self, maps: &[PixelMap], points: usize, seed: u64) -> f64 {
-        let affine: Vec<Affine2> = maps.iter().map(|m| Affine2 { m: m.g, b: m.h }).collect();
-        let dets: Vec<f64> = affine.iter().map(|m| m.det().abs()).collect();
-        let Ok(sampler) = ProbabilityRule::default()
-            .resolve(&dets)
-            .and_then(|p| MapSampler::new(&p))
-        else {
+        let Some(pts) = attractor_points(maps, points, seed) else {
             return 0.0;
         };
-        let mut game = Trajectory::new(&affine, &sampler, seed, 0, 0.0);
-        game.skip_steps(60);
         let s = self.size as i64;
         let mut on = vec![false; self.ink.len()];
-        for _ in 0..points {
-            let q = game.step();
+        for q in pts {
             let (x, y) = (q[0].floor() as i64, q[1].floor() as i64);
             if (0..s).contains(&x) && (0..s).contains(&y) {
                 on[(y * s + x) as usize] = true;
@@ -249,6 +242,32 @@ impl Field {
         }
         both as f64 / either.max(1) as f64
     }
+}
+
+/// `n` points of the attractor of `maps` by one chaos game from `seed` (maps drawn ∝ |det|
+/// with the evaluation renders' floor, 60 steps dropped); `None` when every map is
+/// degenerate.
+pub(crate) fn attractor_points(
+    maps: &[PixelMap],
+    n: usize,
+    seed: u64,
+) -> Option<Vec<Vector2<f64>>> {
+    let affine: Vec<Affine2> = maps.iter().map(|m| Affine2 { m: m.g, b: m.h }).collect();
+    let dets: Vec<f64> = affine.iter().map(|m| m.det().abs()).collect();
+    let sampler = ProbabilityRule::default()
+        .resolve(&dets)
+        .and_then(|p| MapSampler::new(&p))
+        .ok()?;
+    let mut game = Trajectory::new(&affine, &sampler, seed, 0, 0.0);
+    game.skip_steps(60);
+    Some(
+        (0..n)
+            .map(|_| {
+                let q = game.step();
+                Vector2::new(q[0], q[1])
+            })
+            .collect(),
+    )
 }
 
 /// `m` with its singular values clamped into `range`.
@@ -601,7 +620,7 @@ pub fn collage_covers(
 /// A pixel-coordinate map in the inversion's coordinates: `x = 2u/S − 1`, `y = 1 − 2v/S`,
 /// i.e. `x = A·p + c` with `A = diag(2/S, −2/S)`, `c = (−1, 1)`, so `M = A·G·A⁻¹` and
 /// `b = A·h + c − M·c`.
-fn to_inversion_frame(map: &PixelMap, size: usize) -> Affine2 {
+pub(crate) fn to_inversion_frame(map: &PixelMap, size: usize) -> Affine2 {
     let a = 2.0 / size as f64;
     let scale = Matrix2::new(a, 0.0, 0.0, -a);
     let unscale = Matrix2::new(1.0 / a, 0.0, 0.0, -1.0 / a);

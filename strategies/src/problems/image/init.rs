@@ -330,7 +330,7 @@ fn nearest_orthogonal(m: &Matrix2<f64>) -> Matrix2<f64> {
 
 /// Scales every offset by one factor so all lie within ±`bound` (the attractor scales by
 /// the same factor about the origin; the renderers' framing does not see it).
-fn fit_offsets(maps: &mut [Affine2], bound: f64) {
+pub(crate) fn fit_offsets(maps: &mut [Affine2], bound: f64) {
     let max = maps
         .iter()
         .flat_map(|m| [m.b[0].abs(), m.b[1].abs()])

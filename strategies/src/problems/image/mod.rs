@@ -21,6 +21,7 @@ pub mod config;
 pub mod init;
 pub mod landscape;
 pub mod model;
+pub mod polish;
 pub mod problem;
 pub mod run;
 pub mod target;

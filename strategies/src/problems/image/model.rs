@@ -366,6 +366,11 @@ pub struct ModelConfig {
     /// (measured in robustness/README.md), so no recipe sets it. Written only when on.
     #[serde(skip_serializing_if = "is_zero")]
     pub collage_refine: usize,
+    /// Rounds of the IoU polish after the fit
+    /// ([`polish`](crate::problems::image::polish): the fitted maps moved to raise their
+    /// attractor's IoU with the picture's ink read at 256², 0: off). Written only when on.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub polish: usize,
     /// Which of the collage search's starts the run takes, best first
     /// ([`ranked_starts`](crate::problems::image::init::ranked_starts): 0, the default, is
     /// the collage start or the EM start, whichever matches the ink better; 1, 2, … the
@@ -435,6 +440,7 @@ impl Default for ModelConfig {
             em_affine: 0,
             start_size: None,
             collage_refine: 0,
+            polish: 0,
             start_rank: 0,
             probabilities: MapProbabilities::Uniform,
         }

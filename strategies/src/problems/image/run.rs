@@ -12,8 +12,10 @@ use crate::driver::GradState;
 use crate::driver::plan::RunPlan;
 use crate::error::{Error, Result};
 use crate::problems::image::config::InversionConfig;
-use crate::problems::image::init::initial_theta;
+use crate::problems::image::init::{fit_offsets, initial_theta};
+use crate::problems::image::polish::{Polish, Polished, polish};
 use crate::problems::image::problem::{ImageProblem, TERMS};
+use crate::problems::image::target::load_framed_picture;
 
 pub use crate::driver::plan::{CHECKPOINT_FILE, LOG_FILE, START_FILE, ensure_new_run_dir};
 
@@ -37,6 +39,39 @@ pub struct InversionOutcome {
     pub log: PathBuf,
     /// How `theta` was chosen.
     pub selection: Selection,
+    /// What the IoU polish did (`model.polish`), if it ran.
+    pub polished: Option<Polished>,
+}
+
+/// The side at which the IoU polish reads a picture target.
+pub const POLISH_SIZE: usize = 256;
+
+/// The IoU polish of the fitted `maps` (`model.polish` rounds) against the picture read at
+/// [`POLISH_SIZE`], or against the framed `target` where the target is no picture.
+fn polish_fit(
+    cfg: &InversionConfig,
+    target: &[f32],
+    maps: &[Affine2],
+    rounds: usize,
+) -> Result<Option<Polished>> {
+    let reread = match &cfg.target.image {
+        Some(path) if cfg.target.size != POLISH_SIZE => {
+            Some(load_framed_picture(path, POLISH_SIZE, cfg.target.polarity)?.values)
+        }
+        _ => None,
+    };
+    let (image, side) = reread
+        .as_ref()
+        .map_or((target, cfg.target.size), |v| (v.as_slice(), POLISH_SIZE));
+    let settings = Polish {
+        rounds,
+        ..Polish::default()
+    };
+    let Some(mut p) = polish(image, side, maps, cfg.seed, &settings)? else {
+        return Ok(None);
+    };
+    fit_offsets(&mut p.maps, 0.9);
+    Ok(Some(p))
 }
 
 /// The random streams the returned θ is chosen on: far from any iteration's own stream, the
@@ -182,11 +217,20 @@ pub fn run_inversion(
     let lpips_note = problem.lpips_skip_reason().map(str::to_owned);
     let start = Instant::now();
     let (problem, state) = plan.execute(problem, &start_theta, resume_from, observers)?;
-    let (theta, selection) = select(&problem, &state, &start_theta)?;
-    let maps = problem.model().affine_maps(&theta)?;
+    let (mut theta, selection) = select(&problem, &state, &start_theta)?;
+    let mut maps = problem.model().affine_maps(&theta)?;
+    let polished = match cfg.model.polish {
+        0 => None,
+        rounds => polish_fit(cfg, problem.target(), &maps, rounds)?,
+    };
+    if let Some(p) = polished.as_ref().filter(|p| p.kept) {
+        theta = problem.model().encode(&p.maps)?;
+        maps = problem.model().affine_maps(&theta)?;
+    }
     Ok(InversionOutcome {
         theta,
         maps,
+        polished,
         iterations: state.get_iter(),
         final_loss: state.get_cost(),
         seconds: start.elapsed().as_secs_f64(),
