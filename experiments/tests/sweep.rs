@@ -885,11 +885,23 @@ fn the_table_sweeps_expand_and_their_committed_runs_are_theirs() {
     // ours_paper, ours_basin, the four value-only baselines and Learning Fractals twice.
     let t3s = Plan::load(&repro.join("table3_starts.toml")).unwrap();
     assert_eq!(t3s.runs.len(), 8 * 30);
+    // Table 4's twelve rows the same way; its `ours` row is Table 3's `ours_paper` there.
+    let t4s = Plan::load(&repro.join("table4_starts.toml")).unwrap();
+    assert_eq!(t4s.runs.len(), 12 * 30);
+    let t3s_ids: std::collections::HashSet<&str> =
+        t3s.runs.iter().map(|r| r.id.as_str()).collect();
+    let shared = t4s
+        .runs
+        .iter()
+        .filter(|r| t3s_ids.contains(r.id.as_str()))
+        .count();
+    assert_eq!(shared, 30, "table4_starts' ours row is table3_starts' ours_paper");
     // The tables are complete: every run of each sweep file is committed, and nothing else.
     for (plan, folder) in [
         (&t3, "table3_medium"),
         (&t4, "table4_medium"),
         (&t3s, "table3_starts"),
+        (&t4s, "table4_starts"),
     ] {
         let done = repro.join("results").join(folder);
         let ids: std::collections::HashSet<&str> =
@@ -974,10 +986,21 @@ fn the_committed_reports_are_collect_of_their_committed_runs() {
             results.join("table3_starts/report"),
             ReportOptions {
                 by: vec![vec!["method".into()]],
-                metrics: suite,
+                metrics: suite.clone(),
                 ..ReportOptions::default()
             },
             vec!["report.md", "aggregate_method.csv"],
+        ),
+        (
+            results.join("table4_starts"),
+            results.join("table4_starts/report"),
+            ReportOptions {
+                by: vec![vec!["ablation".into()]],
+                metrics: suite,
+                versus: Some("ours".into()),
+                ..ReportOptions::default()
+            },
+            vec!["report.md", "aggregate_ablation.csv", "paired_ablation.csv"],
         ),
         (
             cs,
