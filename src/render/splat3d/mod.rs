@@ -261,10 +261,18 @@ impl<M: DiffMap3, T: SplatReal> Renderer for MultiViewSplat<M, T> {
         let kept = tape.kept_points();
         let grid = self.grid();
         let isa = Isa::detect();
+        // The views in parallel as well as each view's tiles: an attractor that crowds a
+        // few tiles of every view (a fern's frond) would otherwise leave a core idle while
+        // one tile of one view is drawn. Each view's plane is its own, so the bits are
+        // those of the views drawn one after another.
+        let drawn: Vec<(Vec<T>, SplatState<T>)> = self
+            .cameras
+            .par_iter()
+            .map(|camera| kernel::forward_with_isa(&grid, self.project(camera, &kept), isa))
+            .collect();
         let mut image = Vec::with_capacity(self.planes().len());
         let mut views = Vec::with_capacity(self.cameras.len());
-        for camera in &self.cameras {
-            let (plane, state) = kernel::forward_with_isa(&grid, self.project(camera, &kept), isa);
+        for (plane, state) in drawn {
             image.extend_from_slice(&plane);
             views.push(state);
         }
@@ -304,8 +312,8 @@ impl<M: DiffMap3, T: SplatReal> Renderer for MultiViewSplat<M, T> {
         let grid = self.grid();
         let guv: Vec<Vec<[f64; 2]>> = tape
             .views
-            .iter()
-            .zip(grad_image.chunks_exact(planes.pixels()))
+            .par_iter()
+            .zip(grad_image.par_chunks_exact(planes.pixels()))
             .map(|(state, g)| kernel::backward(&grid, state, g))
             .collect();
         let kept = tape.trajectories.kept_points();
