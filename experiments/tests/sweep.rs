@@ -888,14 +888,16 @@ fn the_table_sweeps_expand_and_their_committed_runs_are_theirs() {
     // Table 4's twelve rows the same way; its `ours` row is Table 3's `ours_paper` there.
     let t4s = Plan::load(&repro.join("table4_starts.toml")).unwrap();
     assert_eq!(t4s.runs.len(), 12 * 30);
-    let t3s_ids: std::collections::HashSet<&str> =
-        t3s.runs.iter().map(|r| r.id.as_str()).collect();
+    let t3s_ids: std::collections::HashSet<&str> = t3s.runs.iter().map(|r| r.id.as_str()).collect();
     let shared = t4s
         .runs
         .iter()
         .filter(|r| t3s_ids.contains(r.id.as_str()))
         .count();
-    assert_eq!(shared, 30, "table4_starts' ours row is table3_starts' ours_paper");
+    assert_eq!(
+        shared, 30,
+        "table4_starts' ours row is table3_starts' ours_paper"
+    );
     // The tables are complete: every run of each sweep file is committed, and nothing else.
     for (plan, folder) in [
         (&t3, "table3_medium"),
