@@ -1,7 +1,7 @@
 //! One iteration of the multi-view fit (issue 39's speed goal): 8 turntable views of 128²,
 //! 100 000 points in all (400 trajectories of 260 steps, 10 dropped), 4× supersampling,
-//! σ = 1, coverage, plain MSE on every view — `Image3dProblem::evaluate`, the loss and its
-//! gradient the way the driver calls it — and its stages: the 3-D chaos game with its tape,
+//! σ = 1, coverage, `invert3d`'s default loss and terms — `Image3dProblem::evaluate`, the loss
+//! and its gradient the way the driver calls it — and its stages: the 3-D chaos game with its tape,
 //! the multi-view forward (projection and the 2-D kernel per view), and the reverse pass.
 //!
 //! ```sh
@@ -14,12 +14,11 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use ifslab::loss::MsMse;
 use ifslab::model::map3::{DiffMap3, SvdMap3, fern_3d, sierpinski_tetrahedron};
 use ifslab::render::Renderer;
 use ifslab::render::splat3d::{Lens, MultiViewConfig, MultiViewSplat, turntable};
 use ifslab_strategies::driver::Differentiable;
-use ifslab_strategies::problems::image3d::{Image3dProblem, Views};
+use ifslab_strategies::problems::image3d::{Image3dConfig, Image3dProblem, Views};
 
 #[global_allocator]
 static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
@@ -48,12 +47,16 @@ fn bench_image3d(c: &mut Criterion) {
     let (fern, _) = fern_3d();
     let maps = SvdMap3::from_code(&fern, 1e-6).unwrap();
     let theta: Vec<f64> = maps.iter().flat_map(|m| m.params()).collect();
-    let problem = Image3dProblem::<f32>::new(&maps, &views, cfg.clone(), MsMse::new(0), 0)
+    // The fit's terms as `invert3d` sets them by default (ink guard, volume term, maps drawn
+    // as its defaults draw them), at the issue's render setting.
+    let defaults = Image3dConfig::default();
+    let problem = Image3dProblem::<f32>::new(&maps, &views, cfg.clone(), defaults.loss(), 0)
         .unwrap()
-        .with_ink(3.0, 0.0)
+        .with_ink(defaults.ink, defaults.ink_slack)
         .unwrap()
-        .with_volume(0.01)
-        .unwrap();
+        .with_volume(defaults.volume)
+        .unwrap()
+        .with_map_choice(defaults.probabilities);
     let splat = MultiViewSplat::<SvdMap3, f32>::new(cfg.clone(), cameras).unwrap();
 
     let mut g = c.benchmark_group("image3d_8x128_100k");
