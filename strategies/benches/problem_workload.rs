@@ -3,7 +3,9 @@
 //! problem (affine maps under the SVD parameterisation, splat at the demo setting: 96², 4×,
 //! σ = 1, 1000 × 110 trajectories, MS-MSE + D-SSIM, f32), the SDF problem (Koch at depth 3,
 //! 256², σ = 1.5, the default loss with its 6σ cut-off) and the flame problem (8 generators
-//! with trigonometric variations, 100², 200 × 200 samples, the authors' MSE).
+//! with trigonometric variations, 100², 200 × 200 samples, the authors' MSE) and the
+//! multi-view problem (the 3-D fern's maps against 8 turntable views of the tetrahedron,
+//! 128², 100 000 points, `invert3d`'s default terms, f32).
 //!
 //! ```sh
 //! cargo bench -p ifslab-strategies --bench problem_workload --no-run   # prints the path
@@ -11,18 +13,23 @@
 //!     target/release/deps/problem_workload-<hash> sdf 3
 //! ```
 //!
-//! Stages `setup`, `image`, `sdf`, `flame`, each run N times after the setup; the per-call
-//! cost is the difference between runs with N and N + k calls, divided by k (BENCHMARKS.md
-//! §10).
+//! Stages `setup`, `image`, `sdf`, `flame`, `image3d`, each run N times after the setup; the
+//! per-call cost is the difference between runs with N and N + k calls, divided by k
+//! (BENCHMARKS.md §10). It prints a fingerprint of every loss's and gradient's bits, so two
+//! builds can be checked to compute the same numbers.
 
 use std::hint::black_box;
 
 use ifslab::loss::LossConfig;
 use ifslab::model::Svd;
+use ifslab::model::map3::{DiffMap3, SvdMap3, fern_3d, sierpinski_tetrahedron};
+use ifslab::render::Renderer;
 use ifslab::render::splat;
+use ifslab::render::splat3d::{Lens, MultiViewConfig, MultiViewSplat, turntable};
 use ifslab_strategies::driver::Differentiable;
 use ifslab_strategies::problems::flame::{FlameLoss, FlameProblem, Rates};
 use ifslab_strategies::problems::image::{AffineModel, ImageProblem};
+use ifslab_strategies::problems::image3d::{Image3dConfig, Image3dProblem, Views};
 use ifslab_strategies::problems::sdf::{SdfLossConfig, SdfProblem};
 
 include!("../../benches/common/fixtures.rs");
@@ -31,23 +38,28 @@ include!("../../benches/common/fixtures.rs");
 static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 fn main() {
-    let (stage, calls) = stage_and_calls("problem_workload <setup|image|sdf|flame> <calls>");
+    let (stage, calls) =
+        stage_and_calls("problem_workload <setup|image|sdf|flame|image3d> <calls>");
     let (problem, theta): (Box<dyn Differentiable>, Vec<f64>) = match stage.as_str() {
         "image" | "setup" => image(),
         "sdf" => sdf(),
         "flame" => flame(),
+        "image3d" => image3d(),
         s => panic!("unknown stage {s}"),
     };
     let mut sink = 0.0f64;
+    // FNV-1a over the bits of every loss and gradient entry.
+    let mut bits = 0xcbf2_9ce4_8422_2325u64;
     if stage != "setup" {
         for call in 0..calls {
-            sink += problem
-                .evaluate(&theta, call as u64)
-                .expect("evaluate")
-                .loss;
+            let e = problem.evaluate(&theta, call as u64).expect("evaluate");
+            sink += e.loss;
+            for v in std::iter::once(e.loss).chain(e.grad) {
+                bits = (bits ^ v.to_bits()).wrapping_mul(0x100_0000_01b3);
+            }
         }
     }
-    eprintln!("{stage} × {calls} [{}]", black_box(sink));
+    eprintln!("{stage} × {calls} [{}] bits {bits:016x}", black_box(sink));
 }
 
 fn image() -> (Box<dyn Differentiable>, Vec<f64>) {
@@ -100,5 +112,35 @@ fn flame() -> (Box<dyn Differentiable>, Vec<f64>) {
         FlameLoss::default(),
     )
     .expect("a problem");
+    (Box::new(problem), theta)
+}
+
+fn image3d() -> (Box<dyn Differentiable>, Vec<f64>) {
+    let side = 128;
+    let cameras = turntable(
+        8,
+        25.0,
+        2.6,
+        Lens::pinhole_fov(50f64.to_radians(), side, side),
+        side,
+        side,
+    )
+    .expect("cameras");
+    let cfg = MultiViewConfig::default();
+    let truth = SvdMap3::from_code(&sierpinski_tetrahedron(), 1e-6).expect("maps");
+    let target = MultiViewSplat::<SvdMap3, f32>::new(cfg.clone(), cameras.clone())
+        .expect("a splat")
+        .forward(&truth, &99)
+        .expect("forward")
+        .0;
+    let views = Views::new(cameras, target).expect("views");
+    let maps = SvdMap3::from_code(&fern_3d().0, 1e-6).expect("maps");
+    let theta: Vec<f64> = maps.iter().flat_map(|m| m.params()).collect();
+    let d = Image3dConfig::default();
+    let problem = Image3dProblem::<f32>::new(&maps, &views, cfg, d.loss(), 0)
+        .and_then(|p| p.with_ink(d.ink, d.ink_slack))
+        .and_then(|p| p.with_volume(d.volume))
+        .expect("a problem")
+        .with_map_choice(d.probabilities);
     (Box::new(problem), theta)
 }

@@ -21,7 +21,7 @@ pub use config::{
     BackgroundConfig, DEFAULT_ADAM_LR, FlameLearnConfig, FlameLoss, LayerSpec, Rates,
     default_xforms,
 };
-pub use problem::{FLAME_TERMS, FlameProblem};
+pub use problem::{FLAME_TERMS, FlameImageLoss, FlameModel, FlameProblem};
 pub use run::{
     FlameOutcome, flame_problem, initial_stack, load_rgb_picture, load_rgb_target, run_flame,
 };

@@ -27,7 +27,7 @@ pub mod views;
 
 pub use config::{Image3dConfig, MapChoice, Render3dConfig, Start3d};
 pub use hull::{Hull, HullConfig, encode_start, hull_start, random_start, visual_hull};
-pub use problem::{IMAGE3D_TERMS, Image3dProblem};
+pub use problem::{IMAGE3D_TERMS, Image3dLoss, Image3dModel, Image3dProblem};
 pub use run::{
     HeldOut3d, Image3dOutcome, Summary3d, attractor, render_code, run_image3d, run_image3d_in,
     score_views, write_outputs, write_ply,

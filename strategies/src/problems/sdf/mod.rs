@@ -37,7 +37,9 @@ pub use crossing::{MAX_CROSSING_DEPTH, crossing_depth2, crossing_penalty};
 pub use init::{PROBE_STEPS, SdfInit, candidate_starts, initial_points};
 pub use landscape::sdf_landscape;
 pub use learned::{LearnedConfig, LearnedPattern};
-pub use problem::{CUTOFF_SIGMAS, SDF_TERMS, SdfEval, SdfLossConfig, SdfProblem};
+pub use problem::{
+    CUTOFF_SIGMAS, SDF_TERMS, SdfEval, SdfLoss, SdfLossConfig, SdfModel, SdfProblem, SdfScene,
+};
 pub use run::{
     SdfOutcome, at_sigma, best_start, rescue_legs, run_sdf, sdf_problem, stroke_sigma_legs,
 };

@@ -1,5 +1,6 @@
 //! The fit: control points θ → segment maps → SDF raster → multi-scale MSE on pixels and on
-//! distances → gradient, all in f64 with the renderer's hand-written reverse pass.
+//! distances → gradient, all in f64 with the renderer's hand-written reverse pass; an
+//! instance of the one image problem ([`RenderProblem`]).
 //!
 //! The paper's two losses: multi-scale MSE (the image and its 2×2-pooled copies, summed)
 //! between the rendered pixels `exp(−d²/σ²)` and the target's ink, and between the raw
@@ -9,15 +10,16 @@
 //! while the render's is to the figure itself: on a target drawn with width σ the two differ
 //! by about σ near the figure, which the pixel term does not.
 
+use std::borrow::{Borrow, Cow};
+
 use ifslab::loss::{ImageLoss, MsMse};
 use ifslab::model::segment::Pattern;
+use ifslab::render::Renderer;
 use ifslab::render::sdf::{SdfRenderConfig, SdfRenderer, SdfView};
-use ifslab::render::{Renderer, Sampler};
 use serde::{Deserialize, Serialize};
 
-use crate::driver::{Differentiable, Evaluation};
 use crate::error::{Error, Result};
-use crate::optim::annealing::Anneal;
+use crate::problems::render_problem::{Moment, PlaneLoss, RenderProblem, SceneModel, Terms};
 use crate::problems::sdf::barrier::scale_barrier;
 use crate::problems::sdf::crossing::{MAX_CROSSING_DEPTH, crossing_penalty};
 use crate::problems::sdf::learned::{LearnedConfig, LearnedPattern};
@@ -126,23 +128,57 @@ impl SdfLossConfig {
     }
 }
 
-/// Fit a pattern's control points to a target image.
+/// Fit a pattern's control points to a target image: the [`RenderProblem`] of an
+/// [`SdfModel`] scored by an [`SdfLoss`].
+pub type SdfProblem = RenderProblem<SdfModel, SdfLoss>;
+
+/// θ → the pattern with those control points (or, with learned pairs, the soft pattern of
+/// the points and logits) → the SDF raster at the run's σ; the self-crossing penalty and the
+/// scale barrier as priors on the pattern.
 #[derive(Clone, Debug)]
-pub struct SdfProblem {
+pub struct SdfModel {
     pattern: Pattern,
     view: SdfView,
     render: SdfRenderConfig,
     sigma: f64,
     /// `(σ at iteration 0, T)` when σ shrinks over the run.
     sigma_schedule: Option<(f64, u64)>,
-    loss: SdfLossConfig,
+    /// The loss's weights: the priors', and which planes the renderer draws.
+    weights: SdfLossConfig,
+    /// Draw the distance plane (the loss has a distance term).
+    distance: bool,
+    /// Learned pairs: θ holds softmax logits after the points.
+    learned: Option<LearnedPattern>,
+}
+
+/// A pattern drawn by the SDF problem, with the temperature its learned pairs (if any) were
+/// softened at: what the chain rule back to θ needs.
+#[derive(Clone, Debug)]
+pub struct SdfScene {
+    /// The pattern the raster draws.
+    pub pattern: Pattern,
+    /// The learned pairs' temperature (1 without learned pairs).
+    pub tau: f64,
+}
+
+impl Borrow<Pattern> for SdfScene {
+    fn borrow(&self) -> &Pattern {
+        &self.pattern
+    }
+}
+
+/// The paper's two terms on the raster's planes: multi-scale MSE between the intensity plane
+/// and the target's ink, and between the distance plane and the target's distance transform.
+#[derive(Clone, Debug)]
+pub struct SdfLoss {
     target: Vec<f64>,
     /// The target's distance transform in units of the image side (distance term only).
     target_dist: Option<Vec<f64>>,
-    /// Learned pairs: θ holds softmax logits after the points.
-    learned: Option<LearnedPattern>,
-    /// The raster's sampling state: none, it is deterministic (no seed).
-    sampler: Sampler<SdfRenderer>,
+    pixel: f64,
+    distance: f64,
+    mse: MsMse,
+    width: usize,
+    height: usize,
 }
 
 /// One evaluation's numbers.
@@ -160,6 +196,160 @@ pub struct SdfEval {
     pub scale_barrier: f64,
     /// ∂loss/∂θ, when asked for.
     pub grad: Option<Vec<f64>>,
+}
+
+impl SdfModel {
+    /// σ at progress `frac = t/T` of the run.
+    fn sigma_at(&self, frac: f64) -> f64 {
+        match self.sigma_schedule {
+            None => self.sigma,
+            Some((s0, _)) => s0 * (self.sigma / s0).powf(frac.clamp(0.0, 1.0)),
+        }
+    }
+
+    fn frac(&self, iter: u64) -> f64 {
+        match self.sigma_schedule {
+            None => 1.0,
+            Some((_, t)) => iter as f64 / t as f64,
+        }
+    }
+
+    /// The renderer of an evaluation with lines of width `sigma` (see
+    /// [`SdfProblem::renderer`]).
+    fn renderer_with(&self, sigma: f64) -> SdfRenderer {
+        SdfRenderer {
+            view: self.view,
+            cfg: SdfRenderConfig {
+                cutoff: self.render.cutoff.map(|_| CUTOFF_SIGMAS * sigma),
+                ..self.render
+            },
+            sigma,
+            intensity: self.weights.pixel > 0.0,
+            distance: self.distance,
+        }
+    }
+
+    /// The pattern of θ with learned pairs (if any) softened at temperature `tau`.
+    fn scene_at(&self, theta: &[f64], tau: f64) -> Result<SdfScene> {
+        let pattern = match &self.learned {
+            Some(l) => l.soft_pattern(theta, tau, self.weights.scale_barrier > 0.0)?,
+            None => self.pattern.with_flat_points(theta)?,
+        };
+        Ok(SdfScene { pattern, tau })
+    }
+}
+
+impl SceneModel for SdfModel {
+    type Renderer = SdfRenderer;
+    type Scene = SdfScene;
+
+    /// The iteration sets the learned pairs' temperature; an annealing candidate's progress
+    /// sets it at that fraction of the learned schedule.
+    fn scene(&self, theta: &[f64], at: Moment) -> Result<SdfScene> {
+        let tau = self.learned.as_ref().map_or(1.0, |l| match at {
+            Moment::Iteration(iter) => l.temperature_at(iter),
+            Moment::Progress { frac, .. } => {
+                l.temperature_at((frac.clamp(0.0, 1.0) * l.iterations() as f64) as u64)
+            }
+        });
+        self.scene_at(theta, tau)
+    }
+
+    /// Deterministic: the moment only sets σ when σ follows a schedule.
+    fn renderer(&self, _scene: &SdfScene, at: Moment) -> Result<Cow<'_, SdfRenderer>> {
+        let frac = match at {
+            Moment::Iteration(iter) => self.frac(iter),
+            Moment::Progress { frac, .. } => frac,
+        };
+        Ok(Cow::Owned(self.renderer_with(self.sigma_at(frac))))
+    }
+
+    fn draw(&self, _at: Moment) -> u64 {
+        0
+    }
+
+    fn priors(&self, scene: &SdfScene, terms: &mut Terms, grad: Option<&mut [f64]>) -> Result<()> {
+        let w = &self.weights;
+        let mut grad = grad;
+        if w.crossing > 0.0 {
+            let (v, g) = crossing_penalty(&scene.pattern, w.crossing_depth, grad.is_some())?;
+            terms.set(SDF_TERMS[2], v, w.crossing);
+            if let Some(grad) = grad.as_deref_mut() {
+                for (x, c) in grad.iter_mut().zip(g) {
+                    *x += w.crossing * c;
+                }
+            }
+        }
+        if w.scale_barrier > 0.0 {
+            let (v, g) = scale_barrier(&scene.pattern, w.max_scale)?;
+            terms.set(SDF_TERMS[3], v, w.scale_barrier);
+            if let Some(grad) = grad {
+                for (x, b) in grad.iter_mut().zip(g) {
+                    *x += w.scale_barrier * b;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn pull_back(&self, theta: &[f64], scene: &SdfScene, grad: Vec<f64>) -> Result<Vec<f64>> {
+        match &self.learned {
+            Some(l) => l.backward(theta, scene.tau, &grad),
+            None => Ok(grad),
+        }
+    }
+
+    /// A non-finite loss is refused: control points that far off are not a fit.
+    fn check_loss(&self, loss: f64) -> Result<()> {
+        if loss.is_finite() {
+            Ok(())
+        } else {
+            Err(Error::Numerical(format!(
+                "the loss is {loss} at these control points"
+            )))
+        }
+    }
+}
+
+impl PlaneLoss<f64> for SdfLoss {
+    /// The planes are the intensity plane when the pixel term is on, then the distance
+    /// plane when the distance term is on.
+    fn value_and_grad(
+        &self,
+        planes: &[f64],
+        grad: bool,
+        terms: &mut Terms,
+    ) -> Result<Option<Vec<f64>>> {
+        let (w, h) = (self.width, self.height);
+        let intensity = self.pixel > 0.0;
+        // ∂L/∂planes: the intensity plane's, then the distance plane's.
+        let mut g_planes = if grad {
+            vec![0.0; planes.len()]
+        } else {
+            Vec::new()
+        };
+        let (img, d) = planes.split_at(if intensity { w * h } else { 0 });
+        if intensity {
+            let (v, g) = self.mse.value_and_grad::<f64>(img, &self.target, w, h)?;
+            terms.set(SDF_TERMS[0], v, self.pixel);
+            if grad {
+                for (a, x) in g_planes.iter_mut().zip(&g) {
+                    *a = x * self.pixel;
+                }
+            }
+        }
+        if let Some(td) = &self.target_dist {
+            let (v, g) = self.mse.value_and_grad::<f64>(d, td, w, h)?;
+            terms.set(SDF_TERMS[1], v, self.distance);
+            if grad {
+                let at = g_planes.len() - w * h;
+                for (a, x) in g_planes[at..].iter_mut().zip(&g) {
+                    *a = self.distance * x;
+                }
+            }
+        }
+        Ok(grad.then_some(g_planes))
+    }
 }
 
 impl SdfProblem {
@@ -204,18 +394,27 @@ impl SdfProblem {
             depth,
             cutoff: (loss.distance == 0.0).then_some(CUTOFF_SIGMAS * sigma),
         };
-        Ok(SdfProblem {
+        let plane_loss = SdfLoss {
+            target,
+            distance: loss.distance,
+            pixel: loss.pixel,
+            mse: MsMse::new(loss.levels),
+            width: view.width,
+            height: view.height,
+            target_dist,
+        };
+        let model = SdfModel {
             pattern,
             view,
             render,
             sigma,
             sigma_schedule: None,
-            loss,
-            target,
-            target_dist,
+            distance: plane_loss.target_dist.is_some(),
+            weights: loss,
             learned: None,
-            sampler: Sampler::new(0),
-        })
+        };
+        // The raster is deterministic: the seed draws nothing.
+        Ok(RenderProblem::from_parts(model, plane_loss, 0, &SDF_TERMS))
     }
 
     /// Coarse to fine: σ starts at `sigma_start` and shrinks geometrically to the problem's
@@ -228,7 +427,7 @@ impl SdfProblem {
                 format!("must be > 0 pixels, got {sigma_start}"),
             ));
         }
-        self.sigma_schedule = Some((sigma_start, iterations.max(1)));
+        self.model.sigma_schedule = Some((sigma_start, iterations.max(1)));
         Ok(self)
     }
 
@@ -236,67 +435,62 @@ impl SdfProblem {
     /// followed by one logit per pair endpoint and control point; τ shrinks over
     /// `iterations`.
     pub fn with_learned_pattern(mut self, cfg: LearnedConfig, iterations: u64) -> Result<Self> {
-        self.learned = Some(LearnedPattern::new(self.pattern.clone(), cfg, iterations)?);
+        self.model.learned = Some(LearnedPattern::new(
+            self.model.pattern.clone(),
+            cfg,
+            iterations,
+        )?);
         Ok(self)
     }
 
     /// The learned pairs, when θ holds logits.
     pub fn learned(&self) -> Option<&LearnedPattern> {
-        self.learned.as_ref()
+        self.model.learned.as_ref()
     }
 
     /// σ at progress `frac = t/T` of the run.
     pub fn sigma_at(&self, frac: f64) -> f64 {
-        match self.sigma_schedule {
-            None => self.sigma,
-            Some((s0, _)) => s0 * (self.sigma / s0).powf(frac.clamp(0.0, 1.0)),
-        }
-    }
-
-    fn frac(&self, iter: u64) -> f64 {
-        match self.sigma_schedule {
-            None => 1.0,
-            Some((_, t)) => iter as f64 / t as f64,
-        }
+        self.model.sigma_at(frac)
     }
 
     /// The pattern whose structure is fitted (its points are the start of nothing: θ is
     /// passed to every call).
     pub fn pattern(&self) -> &Pattern {
-        &self.pattern
+        &self.model.pattern
     }
 
     /// The view.
     pub fn view(&self) -> &SdfView {
-        &self.view
+        &self.model.view
     }
 
     /// The target's ink.
     pub fn target(&self) -> &[f64] {
-        &self.target
+        &self.loss.target
     }
 
     /// The render settings.
     pub fn render_config(&self) -> &SdfRenderConfig {
-        &self.render
+        &self.model.render
     }
 
     /// σ in pixels at the end of the run (and throughout, without a schedule).
     pub fn sigma(&self) -> f64 {
-        self.sigma
+        self.model.sigma
     }
 
     /// The pattern with control points θ (with learned pairs: their hard assignment).
     pub fn pattern_at(&self, theta: &[f64]) -> Result<Pattern> {
-        match &self.learned {
+        match &self.model.learned {
             Some(l) => l.hard_pattern(theta),
-            None => Ok(self.pattern.with_flat_points(theta)?),
+            None => Ok(self.model.pattern.with_flat_points(theta)?),
         }
     }
 
     /// The final temperature of learned pairs (1 without: unused).
     fn final_temperature(&self) -> f64 {
-        self.learned
+        self.model
+            .learned
             .as_ref()
             .map_or(1.0, |l| l.temperature_at(u64::MAX))
     }
@@ -304,7 +498,8 @@ impl SdfProblem {
     /// The rendered image at θ (with the final σ).
     pub fn image(&self, theta: &[f64]) -> Result<Vec<f64>> {
         let p = self.pattern_at(theta)?;
-        let renderer = SdfRenderer::new(self.view, self.render, self.sigma);
+        let m = &self.model;
+        let renderer = SdfRenderer::new(m.view, m.render, m.sigma);
         Ok(renderer
             .forward(&p, &self.sampler.sampling(&renderer, &p, 0))?
             .0)
@@ -314,21 +509,12 @@ impl SdfProblem {
     /// the loss has a pixel term, the distance plane when it has a distance term, the
     /// cut-off (without a distance term) at [`CUTOFF_SIGMAS`]·σ.
     pub fn renderer(&self, sigma: f64) -> SdfRenderer {
-        SdfRenderer {
-            view: self.view,
-            cfg: SdfRenderConfig {
-                cutoff: self.render.cutoff.map(|_| CUTOFF_SIGMAS * sigma),
-                ..self.render
-            },
-            sigma,
-            intensity: self.loss.pixel > 0.0,
-            distance: self.target_dist.is_some(),
-        }
+        self.model.renderer_with(sigma)
     }
 
     /// Loss terms at θ with the final σ, and the gradient when `grad`.
     pub fn eval(&self, theta: &[f64], grad: bool) -> Result<SdfEval> {
-        self.eval_with(theta, grad, self.sigma)
+        self.eval_with(theta, grad, self.model.sigma)
     }
 
     /// Loss terms at θ drawn with width `sigma`, and the gradient when `grad`.
@@ -339,120 +525,16 @@ impl SdfProblem {
     /// Loss terms at θ drawn with width `sigma`, learned pairs (if any) at temperature
     /// `tau`, and the gradient when `grad`.
     pub fn eval_at(&self, theta: &[f64], grad: bool, sigma: f64, tau: f64) -> Result<SdfEval> {
-        let p = match &self.learned {
-            Some(l) => l.soft_pattern(theta, tau, self.loss.scale_barrier > 0.0)?,
-            None => self.pattern.with_flat_points(theta)?,
-        };
-        let renderer = self.renderer(sigma);
-        let sampling = self.sampler.sampling(&renderer, &p, 0);
-        let (planes, raster) = renderer.forward(&p, &sampling)?;
-        let (w, h) = (self.view.width, self.view.height);
-        let mse = MsMse::new(self.loss.levels);
-        // ∂L/∂planes: the intensity plane's, then the distance plane's.
-        let mut g_planes = if grad {
-            vec![0.0; planes.len()]
-        } else {
-            Vec::new()
-        };
-        let (img, d) = planes.split_at(if renderer.intensity { w * h } else { 0 });
-        let mut out = SdfEval {
-            loss: 0.0,
-            pixel: 0.0,
-            distance: 0.0,
-            crossing: 0.0,
-            scale_barrier: 0.0,
-            grad: None,
-        };
-        if renderer.intensity {
-            let (v, g) = mse.value_and_grad::<f64>(img, &self.target, w, h)?;
-            out.pixel = v;
-            out.loss += self.loss.pixel * v;
-            if grad {
-                for (a, x) in g_planes.iter_mut().zip(&g) {
-                    *a = x * self.loss.pixel;
-                }
-            }
-        }
-        if let Some(td) = &self.target_dist {
-            let (v, g) = mse.value_and_grad::<f64>(d, td, w, h)?;
-            out.distance = v;
-            out.loss += self.loss.distance * v;
-            if grad {
-                let at = g_planes.len() - w * h;
-                for (a, x) in g_planes[at..].iter_mut().zip(&g) {
-                    *a = self.loss.distance * x;
-                }
-            }
-        }
-        let mut g_barrier = None;
-        if self.loss.scale_barrier > 0.0 {
-            let (v, g) = scale_barrier(&p, self.loss.max_scale)?;
-            out.scale_barrier = v;
-            out.loss += self.loss.scale_barrier * v;
-            g_barrier = Some(g);
-        }
-        let mut g_cross = None;
-        if self.loss.crossing > 0.0 {
-            let (v, g) = crossing_penalty(&p, self.loss.crossing_depth, grad)?;
-            out.crossing = v;
-            out.loss += self.loss.crossing * v;
-            g_cross = Some(g);
-        }
-        if !out.loss.is_finite() {
-            return Err(Error::Numerical(format!(
-                "the loss is {} at these control points",
-                out.loss
-            )));
-        }
-        if grad {
-            let mut g = renderer.backward(&p, &sampling, &raster, &g_planes)?;
-            if let Some(gc) = g_cross {
-                for (x, c) in g.iter_mut().zip(gc) {
-                    *x += self.loss.crossing * c;
-                }
-            }
-            if let Some(gb) = g_barrier {
-                for (x, b) in g.iter_mut().zip(gb) {
-                    *x += self.loss.scale_barrier * b;
-                }
-            }
-            out.grad = Some(match &self.learned {
-                Some(l) => l.backward(theta, tau, &g)?,
-                None => g,
-            });
-        }
-        Ok(out)
-    }
-}
-
-impl Differentiable for SdfProblem {
-    /// Deterministic: the iteration only sets σ when σ follows a schedule.
-    fn evaluate(&self, theta: &[f64], iter: u64) -> Result<Evaluation> {
-        let tau = self
-            .learned
-            .as_ref()
-            .map_or(1.0, |l| l.temperature_at(iter));
-        let e = self.eval_at(theta, true, self.sigma_at(self.frac(iter)), tau)?;
-        Ok(Evaluation {
-            loss: e.loss,
-            grad: e.grad.unwrap_or_default(),
-            terms: vec![
-                (SDF_TERMS[0], e.pixel),
-                (SDF_TERMS[1], e.distance),
-                (SDF_TERMS[2], e.crossing),
-                (SDF_TERMS[3], e.scale_barrier),
-            ],
+        let scene = self.model.scene_at(theta, tau)?;
+        let out = self.pass_with(theta, &scene, &self.model.renderer_with(sigma), 0, grad)?;
+        let t = &out.terms;
+        Ok(SdfEval {
+            loss: t.total(),
+            pixel: t.get(SDF_TERMS[0]),
+            distance: t.get(SDF_TERMS[1]),
+            crossing: t.get(SDF_TERMS[2]),
+            scale_barrier: t.get(SDF_TERMS[3]),
+            grad: out.grad,
         })
-    }
-}
-
-impl Anneal for SdfProblem {
-    /// The loss itself at progress `frac` (the render is deterministic: the stream does
-    /// not matter).
-    fn anneal_cost(&self, theta: &[f64], _stream: u64, frac: f64) -> Result<f64> {
-        let tau = self.learned.as_ref().map_or(1.0, |l| {
-            l.temperature_at((frac.clamp(0.0, 1.0) * l.iterations() as f64) as u64)
-        });
-        Ok(self.eval_at(theta, false, self.sigma_at(frac), tau)?.loss)
     }
 }
