@@ -43,8 +43,9 @@ pub enum Error {
         /// The OS error.
         source: std::io::Error,
     },
-    /// An OS error with no file of the library's to name (a thread, a socket, a child
-    /// process), in the OS's words.
+    /// An OS error the library puts no words of its own to (a socket, a thread, a child
+    /// process, and the few file operations whose message has always been the OS's alone),
+    /// in the OS's words.
     Os(std::io::Error),
     /// A config, sweep file, index or manifest (TOML or JSON) that is malformed or refused.
     /// The message names the file; the cause, when there is one, says what is wrong in it.
