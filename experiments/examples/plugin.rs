@@ -237,7 +237,7 @@ candidates = 4
 pub fn run(dir: &Path) -> anyhow::Result<RunReport> {
     register()?;
     let cfg = RunConfig::from_toml(CONFIG, &dir.join("plugin.toml"))?;
-    cfg.run(dir, false, Box::new(Silent))
+    Ok(cfg.run(dir, false, Box::new(Silent))?)
 }
 
 #[allow(dead_code)] // `experiments/tests/plugin.rs` includes this file for `run`.

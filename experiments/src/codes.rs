@@ -2,11 +2,12 @@
 
 use std::path::Path;
 
-use anyhow::Context;
+use crate::Error;
+use crate::error::Context;
 use ifslab::model::{IfsCode, library};
 
 /// A code from a file path or a built-in name.
-pub fn resolve_code(spec: &str) -> anyhow::Result<IfsCode> {
+pub fn resolve_code(spec: &str) -> crate::Result<IfsCode> {
     let path = Path::new(spec);
     // A folder named like a built-in code (the output of an earlier `invert maple -o maple`,
     // or this run's own, made before the code is read) is no code file: the name wins.
@@ -19,9 +20,9 @@ pub fn resolve_code(spec: &str) -> anyhow::Result<IfsCode> {
         // A name with a folder or an extension was meant as a file: say it is missing
         // rather than list the built-in codes.
         Err(_) if looks_like_path(spec) => Err(missing_file(spec)),
-        Err(e) => Err(anyhow::anyhow!(
+        Err(e) => Err(Error::invalid(format!(
             "`{spec}` is neither a file here nor a built-in code ({e})"
-        )),
+        ))),
     }
 }
 
@@ -33,16 +34,20 @@ pub fn looks_like_path(spec: &str) -> bool {
 
 /// The error for a file that is not there: its name, and the folder a relative name was
 /// looked for in.
-pub fn missing_file(spec: &str) -> anyhow::Error {
+pub fn missing_file(spec: &str) -> Error {
     let path = Path::new(spec);
-    if path.is_relative()
+    let message = if path.is_relative()
         && let Ok(cwd) = std::env::current_dir()
     {
-        anyhow::anyhow!(
+        format!(
             "no such file: `{spec}` (looked for it in {})",
             cwd.display()
         )
     } else {
-        anyhow::anyhow!("no such file: `{spec}`")
+        format!("no such file: `{spec}`")
+    };
+    Error::NotFound {
+        path: path.to_owned(),
+        message,
     }
 }

@@ -18,6 +18,8 @@
 //! - [`runs::landscape`]: loss landscapes of a run (`ifslab landscape`);
 //! - [`plot`]: line charts, scatter plots, heat maps and vector fields with a bundled font;
 //! - [`progress`]: the progress callback;
+//! - [`error`]: the library's typed [`Error`] (every call returns [`Result`]), so a caller can
+//!   match on what went wrong (`is_interrupted`, `is_not_found`, a file's `Io` or `Config`);
 //! - [`codes::resolve_code`]: a code from a file or a built-in name;
 //! - [`inputs::parse`]: every input format parsed from bytes (fuzz targets, regression corpus);
 //! - [`serve`]: the zoom viewer's web server (`ifslab serve`);
@@ -25,7 +27,10 @@
 //!   their collected report.
 #![warn(missing_docs)]
 
+pub use error::{Error, Result};
+
 pub mod codes;
+pub mod error;
 pub mod inputs;
 pub mod plot;
 pub mod progress;

@@ -6,7 +6,7 @@
 use std::path::Path;
 use std::sync::Once;
 
-use anyhow::Context;
+use crate::error::Context;
 use plotters::coord::Shift;
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
@@ -39,7 +39,7 @@ pub fn line_chart(
     y_label: &str,
     series: &[Series<'_>],
     log_y: bool,
-) -> anyhow::Result<()> {
+) -> crate::Result<()> {
     ensure_font();
     let tf = |y: f64| if log_y { y.max(1e-300).log10() } else { y };
     let all: Vec<(f64, f64)> = series
@@ -48,7 +48,7 @@ pub fn line_chart(
         .filter(|(x, y)| x.is_finite() && y.is_finite())
         .collect();
     if all.is_empty() {
-        anyhow::bail!("nothing to plot in {title}");
+        crate::error::bail!("nothing to plot in {title}");
     }
     let (x0, x1) = min_max(all.iter().map(|p| p.0));
     let (y0, y1) = min_max(all.iter().map(|p| p.1));
@@ -100,11 +100,11 @@ pub fn scatter(
     title: &str,
     sets: &[Series<'_>],
     point_size: u32,
-) -> anyhow::Result<()> {
+) -> crate::Result<()> {
     ensure_font();
     let all: Vec<(f64, f64)> = sets.iter().flat_map(|s| s.points.iter().copied()).collect();
     if all.is_empty() {
-        anyhow::bail!("nothing to plot in {title}");
+        crate::error::bail!("nothing to plot in {title}");
     }
     let (x0, x1) = min_max(all.iter().map(|p| p.0));
     let (y0, y1) = min_max(all.iter().map(|p| p.1));
@@ -146,7 +146,7 @@ pub fn category_chart(
     y_label: &str,
     categories: &[String],
     points: &[(usize, f64)],
-) -> anyhow::Result<()> {
+) -> crate::Result<()> {
     ensure_font();
     let finite: Vec<(usize, f64)> = points
         .iter()
@@ -154,7 +154,7 @@ pub fn category_chart(
         .filter(|(c, v)| v.is_finite() && *c < categories.len())
         .collect();
     if finite.is_empty() || categories.is_empty() {
-        anyhow::bail!("nothing to plot in {title}");
+        crate::error::bail!("nothing to plot in {title}");
     }
     let (y0, y1) = min_max(finite.iter().map(|p| p.1));
     let lo = y0.min(0.0);
@@ -226,9 +226,9 @@ pub fn heatmaps(
     ys: &[f64],
     panels: &[Heat<'_>],
     marks: &[(&str, f64, f64)],
-) -> anyhow::Result<()> {
+) -> crate::Result<()> {
     ensure_font();
-    anyhow::ensure!(
+    crate::error::ensure!(
         !panels.is_empty() && xs.len() > 1 && ys.len() > 1,
         "nothing to plot"
     );
@@ -237,7 +237,7 @@ pub fn heatmaps(
         let root = root.titled(title, ("sans-serif", 24))?;
         let (hx, hy) = (0.5 * (xs[1] - xs[0]).abs(), 0.5 * (ys[1] - ys[0]).abs());
         for (area, panel) in root.split_evenly((1, panels.len())).iter().zip(panels) {
-            anyhow::ensure!(
+            crate::error::ensure!(
                 panel.values.len() == xs.len() * ys.len(),
                 "grid size mismatch"
             );
@@ -338,9 +338,9 @@ pub fn vector_fields(
     arrow: f64,
     panels: &[Field<'_>],
     marks: &[(&str, f64, f64)],
-) -> anyhow::Result<()> {
+) -> crate::Result<()> {
     ensure_font();
-    anyhow::ensure!(!panels.is_empty(), "nothing to plot");
+    crate::error::ensure!(!panels.is_empty(), "nothing to plot");
     plot_png(path, (520 * panels.len() as u32, 560), |root| {
         root.fill(&WHITE)?;
         let root = root.titled(title, ("sans-serif", 22))?;
@@ -394,8 +394,8 @@ pub fn vector_fields(
 fn plot_png(
     path: &Path,
     size: (u32, u32),
-    draw: impl FnOnce(&DrawingArea<BitMapBackend<'_>, Shift>) -> anyhow::Result<()>,
-) -> anyhow::Result<()> {
+    draw: impl FnOnce(&DrawingArea<BitMapBackend<'_>, Shift>) -> crate::Result<()>,
+) -> crate::Result<()> {
     let mut buf = vec![255u8; size.0 as usize * size.1 as usize * 3];
     {
         let root = BitMapBackend::with_buffer(&mut buf, size).into_drawing_area();
@@ -407,7 +407,7 @@ fn plot_png(
 
 /// Writes an RGB8 buffer as a PNG at the best compression, atomically (figures and reports;
 /// renders keep the fast encoder).
-pub fn write_rgb_png(path: &Path, (w, h): (u32, u32), rgb: &[u8]) -> anyhow::Result<()> {
+pub fn write_rgb_png(path: &Path, (w, h): (u32, u32), rgb: &[u8]) -> crate::Result<()> {
     use image::ImageEncoder;
     use image::codecs::png::{CompressionType, FilterType, PngEncoder};
     let mut bytes = Vec::new();
@@ -420,7 +420,7 @@ pub fn write_rgb_png(path: &Path, (w, h): (u32, u32), rgb: &[u8]) -> anyhow::Res
 /// The series' labels in a box at the top right of a chart of two real axes.
 fn legend<'a>(
     chart: &mut ChartContext<'a, BitMapBackend<'a>, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
-) -> anyhow::Result<()> {
+) -> crate::Result<()> {
     chart
         .configure_series_labels()
         .background_style(WHITE.mix(0.8))

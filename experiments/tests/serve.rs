@@ -677,10 +677,7 @@ fn renders_stop_when_cancelled() {
         let t = Instant::now();
         let e = renderer.render_png(&req, &Cancelled).unwrap_err();
         assert!(
-            matches!(
-                e.downcast_ref::<ifslab::Error>(),
-                Some(ifslab::Error::Cancelled(_))
-            ),
+            matches!(e.as_core(), Some(ifslab::Error::Cancelled(_))),
             "{source}: {e:#}"
         );
         assert!(

@@ -36,7 +36,7 @@ warmup = 10
 supersample = 2
 "#;
 
-fn plan(dir: &Path, sweep: &str) -> anyhow::Result<Plan> {
+fn plan(dir: &Path, sweep: &str) -> ifslab_experiments::Result<Plan> {
     std::fs::write(dir.join("base.toml"), BASE).unwrap();
     let path = dir.join("sweep.toml");
     std::fs::write(&path, sweep).unwrap();

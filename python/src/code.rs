@@ -20,7 +20,7 @@ pub fn resolve(code: &str, is_json: bool) -> anyhow::Result<IfsCode> {
     if is_json {
         Ok(IfsCode::from_json(code, Path::new(DICT_ORIGIN))?)
     } else {
-        resolve_code(code)
+        Ok(resolve_code(code)?)
     }
 }
 

@@ -1,5 +1,5 @@
 //! The library's errors as Python exceptions, carrying the library's own words: the whole
-//! `anyhow` chain on one line (`{:#}`), as the command line prints it.
+//! chain on one line (`{:#}`), as the command line prints it.
 
 use pyo3::create_exception;
 use pyo3::exceptions::{PyException, PyFileNotFoundError, PyKeyboardInterrupt};
@@ -18,6 +18,16 @@ create_exception!(
 pub fn to_py(e: anyhow::Error) -> PyErr {
     let message = format!("{e:#}");
     for cause in e.chain() {
+        // The library's typed error knows what it is under its context.
+        if let Some(lib) = cause.downcast_ref::<ifslab_experiments::Error>() {
+            if lib.is_interrupted() {
+                return PyKeyboardInterrupt::new_err(message);
+            }
+            if lib.is_not_found() {
+                return PyFileNotFoundError::new_err(message);
+            }
+        }
+        // This crate's own calls into the strategies and the core.
         if let Some(ifslab_strategies::Error::Interrupted(_)) =
             cause.downcast_ref::<ifslab_strategies::Error>()
         {
@@ -32,10 +42,6 @@ pub fn to_py(e: anyhow::Error) -> PyErr {
         if io.is_some_and(|io| io.kind() == std::io::ErrorKind::NotFound) {
             return PyFileNotFoundError::new_err(message);
         }
-    }
-    // `ifslab_experiments::codes::missing_file` is a message of its own.
-    if message.contains("no such file: ") {
-        return PyFileNotFoundError::new_err(message);
     }
     IfslabError::new_err(message)
 }

@@ -31,9 +31,9 @@ fn config_of(source: &str, config: &str, overrides: &[String]) -> anyhow::Result
                 ifslab_experiments::sweep::expand::set_dotted(&mut table, &key, value)
                     .with_context(|| format!("applying `{o}`"))?;
             }
-            RunConfig::from_table(table, Path::new(DICT_ORIGIN))
+            Ok(RunConfig::from_table(table, Path::new(DICT_ORIGIN))?)
         }
-        "file" => RunConfig::load_with(Path::new(config), overrides),
+        "file" => Ok(RunConfig::load_with(Path::new(config), overrides)?),
         "resume" => {
             let dir = Path::new(config);
             RunConfig::load_resolved(&dir.join(CONFIG_FILE))

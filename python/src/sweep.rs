@@ -49,7 +49,7 @@ pub fn suite_score(
             None => serde_json::to_value(
                 (0..manifest.codes.len())
                     .map(score)
-                    .collect::<anyhow::Result<Vec<_>>>()?,
+                    .collect::<ifslab_experiments::Result<Vec<_>>>()?,
             )?,
         })
     });
@@ -241,8 +241,10 @@ pub fn sweep(
                     ifslab::interrupt::request();
                 }
             }
-            work.join()
-                .unwrap_or_else(|_| Err(anyhow::anyhow!("the sweep panicked")))
+            match work.join() {
+                Ok(r) => r.map_err(anyhow::Error::from),
+                Err(_) => Err(anyhow::anyhow!("the sweep panicked")),
+            }
         })
     });
     let outcome = match (outcome, interrupted) {
@@ -328,7 +330,7 @@ pub fn collect_sweep(
         let aggregates = groupings
             .iter()
             .map(|b| c.aggregate(b).map(|a| aggregate_json(&a)))
-            .collect::<anyhow::Result<Vec<_>>>()?;
+            .collect::<ifslab_experiments::Result<Vec<_>>>()?;
         let report = match &out {
             Some(o) => Some(write_report(
                 &c,

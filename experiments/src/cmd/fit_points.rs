@@ -235,7 +235,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         ),
         None => {
             let cfg = a.config();
-            cfg.validate().map_err(flag_names)?;
+            cfg.validate().map_err(|e| flag_names(e.into()))?;
             let dir = cfg.output.clone().context("clap: -o or --resume")?;
             (RunConfig::Points(Box::new(cfg)), dir, false)
         }

@@ -199,7 +199,7 @@ fn fit_config(a: &FitArgs) -> anyhow::Result<RunConfig> {
         t.insert(key.into(), value);
     }
     // Relative names are the command line's: read from the working directory.
-    RunConfig::from_table(t, Path::new("./the command line"))
+    Ok(RunConfig::from_table(t, Path::new("./the command line"))?)
 }
 
 /// The settings given as flags (those left out are not in the table).

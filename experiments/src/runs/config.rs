@@ -6,7 +6,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, bail};
+use crate::error::{Context, IoContext, bail, bail_config};
 use ifslab::loss::lpips::default_lpips_weights_path;
 use ifslab_strategies::problems::flame::FlameLearnConfig;
 use ifslab_strategies::problems::image::InversionConfig;
@@ -64,11 +64,12 @@ impl RunConfig {
 
     /// A config from a parsed TOML table; `origin` (the file it came from) names it in
     /// errors and relative file names in it are read from its folder.
-    pub fn from_table(mut table: toml::Table, origin: &Path) -> anyhow::Result<Self> {
+    pub fn from_table(mut table: toml::Table, origin: &Path) -> crate::Result<Self> {
         let problem = match table.remove(PROBLEM_KEY) {
             None => DEFAULT_PROBLEM.to_string(),
             Some(toml::Value::String(s)) => s,
-            Some(v) => bail!(
+            Some(v) => bail_config!(
+                origin,
                 "{}: `{PROBLEM_KEY}` must be a string (one of {}), got {v}",
                 origin.display(),
                 Self::PROBLEMS.join(", ")
@@ -100,7 +101,8 @@ impl RunConfig {
                 let cfg = Image3dRunConfig::from_table(table, origin)?.relative_to(dir);
                 Ok(RunConfig::Image3d(Box::new(cfg)))
             }
-            other => bail!(
+            other => bail_config!(
+                origin,
                 "{}: unknown problem `{other}` (known: {})",
                 origin.display(),
                 Self::PROBLEMS.join(", ")
@@ -109,15 +111,15 @@ impl RunConfig {
     }
 
     /// A config from TOML text (see [`RunConfig::from_table`]).
-    pub fn from_toml(text: &str, origin: &Path) -> anyhow::Result<Self> {
+    pub fn from_toml(text: &str, origin: &Path) -> crate::Result<Self> {
         let table: toml::Table = text
             .parse()
-            .with_context(|| format!("{} is not valid TOML", origin.display()))?;
+            .config_context(origin, || format!("{} is not valid TOML", origin.display()))?;
         RunConfig::from_table(table, origin)
     }
 
     /// Reads and validates a config file.
-    pub fn load(path: &Path) -> anyhow::Result<Self> {
+    pub fn load(path: &Path) -> crate::Result<Self> {
         RunConfig::load_with(path, &[])
     }
 
@@ -125,13 +127,13 @@ impl RunConfig {
     /// adopting or slicing that run. A resolved config written before recipes existed has
     /// no `paper` key and meant the paper's defaults ([`ifslab_strategies::recipe::mark_legacy`]); it is read
     /// that way, so an old run resumes as it started.
-    pub fn load_resolved(path: &Path) -> anyhow::Result<Self> {
+    pub fn load_resolved(path: &Path) -> crate::Result<Self> {
         RunConfig::load_resolved_with(path, toml::Table::new())
     }
 
     /// [`RunConfig::load_resolved`] with `overrides` (a table of keys, nested tables merged
     /// key by key) applied on top: a resumed run told to go on longer, say.
-    pub fn load_resolved_with(path: &Path, overrides: toml::Table) -> anyhow::Result<Self> {
+    pub fn load_resolved_with(path: &Path, overrides: toml::Table) -> crate::Result<Self> {
         let mut table = super::table::read_resolved(path)?;
         merge_into(&mut table, overrides);
         RunConfig::from_table(table, path)
@@ -142,12 +144,11 @@ impl RunConfig {
     /// the result, so an override is checked like the file's own keys. A value is read as a
     /// TOML value (`100`, `0.5`, `true`, `[1, 2]`, `"text"`) and otherwise as a string; file
     /// names in an override are read, like the file's own, from the config's folder.
-    pub fn load_with(path: &Path, overrides: &[String]) -> anyhow::Result<Self> {
-        let text =
-            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    pub fn load_with(path: &Path, overrides: &[String]) -> crate::Result<Self> {
+        let text = std::fs::read_to_string(path).doing("reading", path)?;
         let mut table: toml::Table = text
             .parse()
-            .with_context(|| format!("{} is not valid TOML", path.display()))?;
+            .config_context(path, || format!("{} is not valid TOML", path.display()))?;
         for o in overrides {
             let (key, value) = parse_override(o)?;
             set_dotted(&mut table, &key, value).with_context(|| format!("applying `--set {o}`"))?;
@@ -189,7 +190,7 @@ impl RunConfig {
     /// The resolved config as a TOML table, `problem` key first, every default written out
     /// and every file named absolutely: what identifies a run (sweeps hash it) and what a run
     /// folder's `config.toml` holds.
-    pub fn to_table(&self) -> anyhow::Result<toml::Table> {
+    pub fn to_table(&self) -> crate::Result<toml::Table> {
         let body = match self {
             RunConfig::Image(c) => toml::Table::try_from(c.with_absolute_paths()?)?,
             RunConfig::Points(c) => toml::Table::try_from(c.resolved()?)?,
@@ -223,7 +224,7 @@ impl RunConfig {
         dir: &Path,
         resume: bool,
         progress: Box<dyn Progress>,
-    ) -> anyhow::Result<RunReport> {
+    ) -> crate::Result<RunReport> {
         // Each problem's runner takes its folder's lock (`lock::lock_run_dir`) first.
         match self {
             RunConfig::Image(cfg) => {
@@ -301,7 +302,7 @@ fn merge_into(table: &mut toml::Table, overrides: toml::Table) {
 
 /// One `KEY=VALUE` override: the dotted key and its value, read as a TOML value where it is
 /// one (`3`, `0.5`, `true`, `"a b"`, `[1, 2]`) and as a string otherwise (`cuda`, `fern`).
-pub fn parse_override(s: &str) -> anyhow::Result<(String, toml::Value)> {
+pub fn parse_override(s: &str) -> crate::Result<(String, toml::Value)> {
     let Some((key, value)) = s.split_once('=') else {
         bail!("`{s}` is not KEY=VALUE (e.g. renderer.device=cuda)");
     };

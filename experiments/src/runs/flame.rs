@@ -7,7 +7,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use anyhow::Context;
+use crate::error::IoContext;
 use ifslab::image::Image;
 use ifslab::model::flame::write_flames;
 use ifslab::render::flame_diff::{DiffFlameConfig, GeneratorOrder, forward};
@@ -71,7 +71,7 @@ impl FlameSummary {
     }
 }
 
-fn save_rgb(path: &Path, planes: &[f64], size: usize) -> anyhow::Result<()> {
+fn save_rgb(path: &Path, planes: &[f64], size: usize) -> crate::Result<()> {
     let v: Vec<f32> = planes.iter().map(|&x| x as f32).collect();
     Image::new(size as u32, size as u32, 3, v)?.save_png(path)?;
     Ok(())
@@ -128,7 +128,7 @@ pub fn run(
     dir: &Path,
     resume: bool,
     progress: Box<dyn Progress>,
-) -> anyhow::Result<FlameSummary> {
+) -> crate::Result<FlameSummary> {
     cfg.validate()?;
     let _lock = crate::runs::lock::lock_run_dir(dir)?;
     let size = cfg.sampler.size;
@@ -144,7 +144,7 @@ pub fn run(
     let (target, note) = load_rgb_picture(&cfg.target, size, bg, cfg.frame)?;
     if !resume {
         ensure_new_run_dir(dir)?;
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        std::fs::create_dir_all(dir).doing("creating", dir)?;
         let resolved = crate::runs::RunConfig::Flame(Box::new(cfg.clone())).to_table()?;
         ifslab::io::write_atomic(
             &dir.join(CONFIG_FILE),

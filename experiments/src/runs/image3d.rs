@@ -22,7 +22,8 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use anyhow::{Context, anyhow, bail};
+use crate::Error;
+use crate::error::{Context, IoContext, bail, bail_config};
 use ifslab::model::IfsCode;
 use ifslab::model::map3::{Affine3, fern_3d, sierpinski_tetrahedron};
 use ifslab_strategies::problems::image3d::{
@@ -89,24 +90,28 @@ impl Image3dRunConfig {
     /// from) names it in errors. File names are as written (see
     /// [`Image3dRunConfig::relative_to`]). The fit's keys are checked like every config's:
     /// an unknown one is named.
-    pub fn from_table(mut table: toml::Table, origin: &Path) -> anyhow::Result<Self> {
+    pub fn from_table(mut table: toml::Table, origin: &Path) -> crate::Result<Self> {
         let [views, truth, score_views, output] =
             INPUT_KEYS.map(|key| table.remove(key).map(|v| (key, v)));
-        let text = |entry: Option<(&str, toml::Value)>| -> anyhow::Result<Option<String>> {
+        let text = |entry: Option<(&str, toml::Value)>| -> crate::Result<Option<String>> {
             match entry {
                 None => Ok(None),
                 Some((_, toml::Value::String(s))) => Ok(Some(s)),
-                Some((key, v)) => bail!(
+                Some((key, v)) => bail_config!(
+                    origin,
                     "{}: `{key}` must be a string (a file or folder name), got {v}",
                     origin.display()
                 ),
             }
         };
         let views = text(views)?.ok_or_else(|| {
-            anyhow!(
-                "{}: an image3d run needs `views`, the folder of its pictures and their \
-                 cameras (a transforms.json or turntable.json beside the pictures)",
-                origin.display()
+            Error::config(
+                origin,
+                format!(
+                    "{}: an image3d run needs `views`, the folder of its pictures and their \
+                     cameras (a transforms.json or turntable.json beside the pictures)",
+                    origin.display()
+                ),
             )
         })?;
         let truth = text(truth)?;
@@ -114,9 +119,12 @@ impl Image3dRunConfig {
         let output = text(output)?.map(PathBuf::from);
         let fit: Image3dConfig = toml::Value::Table(table)
             .try_into()
-            .with_context(|| format!("{}: an image3d config", origin.display()))?;
-        fit.validate()
-            .with_context(|| format!("{}: an image3d config", origin.display()))?;
+            .config_context(origin, || {
+                format!("{}: an image3d config", origin.display())
+            })?;
+        fit.validate().config_context(origin, || {
+            format!("{}: an image3d config", origin.display())
+        })?;
         Ok(Image3dRunConfig {
             views: PathBuf::from(views),
             truth,
@@ -151,9 +159,8 @@ impl Image3dRunConfig {
     }
 
     /// The config with every file named absolutely (what a run's id hashes).
-    pub fn with_absolute_paths(&self) -> anyhow::Result<Self> {
-        let abs =
-            |p: &Path| std::path::absolute(p).with_context(|| format!("resolving {}", p.display()));
+    pub fn with_absolute_paths(&self) -> crate::Result<Self> {
+        let abs = |p: &Path| std::path::absolute(p).doing("resolving", p);
         let mut c = self.clone();
         c.views = abs(&c.views)?;
         c.score_views = c.score_views.as_deref().map(abs).transpose()?;
@@ -184,7 +191,7 @@ impl Image3dRunConfig {
 
     /// The resolved config as a run folder's `config.toml` holds it (and a sweep hashes
     /// it): `problem = "image3d"` first, every file named absolutely.
-    pub fn resolved_table(&self) -> anyhow::Result<toml::Table> {
+    pub fn resolved_table(&self) -> crate::Result<toml::Table> {
         let mut t = toml::Table::new();
         t.insert(PROBLEM_KEY.into(), PROBLEM.into());
         t.extend(self.with_absolute_paths()?.to_table()?);
@@ -192,7 +199,7 @@ impl Image3dRunConfig {
     }
 
     /// The config as a TOML table without its `problem` key: the fit's keys and the inputs'.
-    pub fn to_table(&self) -> anyhow::Result<toml::Table> {
+    pub fn to_table(&self) -> crate::Result<toml::Table> {
         let mut t = toml::Table::try_from(&self.fit).context("writing the image3d config")?;
         let path = |p: &Path| toml::Value::String(p.to_string_lossy().into_owned());
         t.insert("views".into(), path(&self.views));
@@ -210,7 +217,7 @@ impl Image3dRunConfig {
 }
 
 /// A 3-D code by built-in name ([`BUILT_IN_CODES`]) or file, with its probabilities.
-pub fn load_code3(spec: &str) -> anyhow::Result<(Vec<Affine3>, Option<Vec<f64>>)> {
+pub fn load_code3(spec: &str) -> crate::Result<(Vec<Affine3>, Option<Vec<f64>>)> {
     match spec {
         "tetrahedron" | "sierpinski-tetrahedron" => Ok((sierpinski_tetrahedron(), None)),
         "fern3d" | "fern-3d" => {
@@ -231,7 +238,7 @@ pub fn load_code3(spec: &str) -> anyhow::Result<(Vec<Affine3>, Option<Vec<f64>>)
 }
 
 /// The views of a run, read from `dir` and named in the error.
-fn read_views(dir: &Path, what: &str) -> anyhow::Result<Views> {
+fn read_views(dir: &Path, what: &str) -> crate::Result<Views> {
     load_views(dir).with_context(|| format!("reading {what} in {}", dir.display()))
 }
 
@@ -243,7 +250,7 @@ pub fn run(
     dir: &Path,
     resume: bool,
     progress: Box<dyn Progress>,
-) -> anyhow::Result<Summary3d> {
+) -> crate::Result<Summary3d> {
     cfg.fit.validate()?;
     let cfg = cfg.with_absolute_paths()?;
     // Refused before the folder is locked (which would create it).
@@ -294,7 +301,7 @@ pub fn run(
                 dir.display()
             );
         }
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        std::fs::create_dir_all(dir).doing("creating", dir)?;
         let resolved = cfg.resolved_table()?;
         ifslab::io::write_atomic(
             &dir.join(CONFIG_FILE),
@@ -322,7 +329,7 @@ pub fn run(
         vec![Box::new(ProgressObserver::new(Box::new(observer)))],
     )
     .map_err(|e| match e {
-        ifslab_strategies::Error::Interrupted(_) => anyhow::Error::new(e).context(format!(
+        ifslab_strategies::Error::Interrupted(_) => Error::from(e).context(format!(
             "continue it with `ifslab invert3d --resume {}`",
             dir.display()
         )),
@@ -339,21 +346,21 @@ pub fn run(
     )?)
 }
 
-fn read_inputs(dir: &Path) -> anyhow::Result<Inputs> {
+fn read_inputs(dir: &Path) -> crate::Result<Inputs> {
     let path = dir.join(INPUTS_FILE);
-    let bytes = std::fs::read(&path).with_context(|| {
+    let bytes = std::fs::read(&path).io_context(&path, || {
         format!(
             "{} holds no record of its views ({INPUTS_FILE}), so it cannot resume",
             dir.display()
         )
     })?;
-    serde_json::from_slice(&bytes).with_context(|| format!("reading {}", path.display()))
+    serde_json::from_slice(&bytes).config_context(&path, || format!("reading {}", path.display()))
 }
 
 /// The config of the run in `dir`, to resume it: its `config.toml`, or for a folder made
 /// before configs named their views (a `config.toml` of the fit's keys alone), that with
 /// the inputs its `invert3d.json` kept.
-pub fn load_run(dir: &Path) -> anyhow::Result<Image3dRunConfig> {
+pub fn load_run(dir: &Path) -> crate::Result<Image3dRunConfig> {
     let path = dir.join(CONFIG_FILE);
     if !path.is_file() {
         bail!(
@@ -363,11 +370,10 @@ pub fn load_run(dir: &Path) -> anyhow::Result<Image3dRunConfig> {
             dir.display()
         );
     }
-    let text =
-        std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+    let text = std::fs::read_to_string(&path).doing("reading", &path)?;
     let table: toml::Table = text
         .parse()
-        .with_context(|| format!("{} is not valid TOML", path.display()))?;
+        .config_context(&path, || format!("{} is not valid TOML", path.display()))?;
     if table.contains_key(PROBLEM_KEY) {
         let mut table = read_resolved(&path)?;
         let problem = problem_of(&table).to_owned();
@@ -382,18 +388,23 @@ pub fn load_run(dir: &Path) -> anyhow::Result<Image3dRunConfig> {
         let folder = path.parent().unwrap_or(Path::new(""));
         return Ok(Image3dRunConfig::from_table(table, &path)?.relative_to(folder));
     }
-    let fit: Image3dConfig = toml::Value::Table(table).try_into().with_context(|| {
-        format!(
-            "{}: not the config of an invert3d run, so nothing to resume",
-            path.display()
-        )
-    })?;
+    let fit: Image3dConfig = toml::Value::Table(table)
+        .try_into()
+        .config_context(&path, || {
+            format!(
+                "{}: not the config of an invert3d run, so nothing to resume",
+                path.display()
+            )
+        })?;
     let inputs = read_inputs(dir)?;
     let views = inputs.views.ok_or_else(|| {
-        anyhow!(
-            "{}: neither its {CONFIG_FILE} nor its {INPUTS_FILE} names the views it fits, so \
-             it cannot resume",
-            dir.display()
+        Error::config(
+            dir.join(CONFIG_FILE),
+            format!(
+                "{}: neither its {CONFIG_FILE} nor its {INPUTS_FILE} names the views it fits, \
+                 so it cannot resume",
+                dir.display()
+            ),
         )
     })?;
     Ok(Image3dRunConfig {
@@ -458,7 +469,7 @@ pub fn render_turntable(
     count: usize,
     side: usize,
     seed: u64,
-) -> anyhow::Result<()> {
+) -> crate::Result<()> {
     let (maps, probs) = load_code3(spec)?;
     let table = TurntableFile {
         views: count,

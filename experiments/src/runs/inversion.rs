@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
-use anyhow::Context;
+use crate::error::{Context, IoContext};
 use ifslab::loss::lpips::LPIPS_MIN_SIDE;
 use ifslab::loss::{Lpips, default_lpips_weights_path};
 use ifslab::metrics::{EVAL_BORDER_FRACTION, ImageMetrics, border_crop_rect, paper_metrics};
@@ -42,7 +42,7 @@ pub const EVAL_SUPERSAMPLE: u32 = 8;
 /// target's grey levels — the covered fraction of each pixel — are on the splat's scale) and
 /// about 200 points per pixel (2 M to 50 M), framed the same way. What a run is *scored*
 /// against is [`ground_truth`].
-pub fn prepare_target(cfg: &InversionConfig) -> anyhow::Result<Vec<f32>> {
+pub fn prepare_target(cfg: &InversionConfig) -> crate::Result<Vec<f32>> {
     let size = cfg.target.size;
     if let Some(path) = &cfg.target.image {
         return load_target(path, size, cfg.target.polarity)
@@ -59,7 +59,7 @@ pub fn prepare_target(cfg: &InversionConfig) -> anyhow::Result<Vec<f32>> {
 }
 
 /// The maps and evaluation probabilities of a config's target code (a code, or a suite's).
-fn target_code(cfg: &InversionConfig) -> anyhow::Result<(Vec<Affine2>, Vec<f64>)> {
+fn target_code(cfg: &InversionConfig) -> crate::Result<(Vec<Affine2>, Vec<f64>)> {
     let code = match (&cfg.target.suite, cfg.target.index) {
         (Some(dir), Some(index)) => {
             let manifest = crate::suite::load(dir)?;
@@ -83,7 +83,7 @@ fn target_code(cfg: &InversionConfig) -> anyhow::Result<(Vec<Affine2>, Vec<f64>)
 /// What a run is scored against: for a code target, its render at the paper's evaluation
 /// setting ([`EVAL_POINTS`] points, [`EVAL_SUPERSAMPLE`]² binary supersampling); for an image,
 /// the framed image itself.
-pub fn ground_truth(cfg: &InversionConfig, target: &[f32]) -> anyhow::Result<Vec<f32>> {
+pub fn ground_truth(cfg: &InversionConfig, target: &[f32]) -> crate::Result<Vec<f32>> {
     if cfg.target.image.is_some() {
         return Ok(target.to_vec());
     }
@@ -95,7 +95,7 @@ pub fn ground_truth(cfg: &InversionConfig, target: &[f32]) -> anyhow::Result<Vec
 /// started (exactly the same values, whatever the working directory and whether the original
 /// file still exists); for run folders from before that copy existed, prepared again from the
 /// config.
-pub fn run_target(cfg: &InversionConfig, dir: &Path) -> anyhow::Result<Vec<f32>> {
+pub fn run_target(cfg: &InversionConfig, dir: &Path) -> crate::Result<Vec<f32>> {
     let stored = dir.join(FRAMED_TARGET_FILE);
     if stored.is_file() {
         return Ok(load_framed_target(&stored, cfg.target.size)?);
@@ -235,7 +235,7 @@ pub fn truth_score(
     maps: &[Affine2],
     seed: u64,
     dir: &Path,
-) -> anyhow::Result<TruthScore> {
+) -> crate::Result<TruthScore> {
     let code = resolve_code(spec).with_context(|| format!("`target.truth` {spec}"))?;
     let truth_maps = code
         .affine2()
@@ -316,7 +316,7 @@ pub fn run_and_report(
     dir: &Path,
     resume: bool,
     progress: Box<dyn Progress>,
-) -> anyhow::Result<Summary> {
+) -> crate::Result<Summary> {
     // A folder holding one run at its top (written before `best_of`, or with `best_of = 1`)
     // resumes as that one run.
     if cfg.best_of > 1 && !(resume && dir.join(CHECKPOINT_FILE).is_file()) {
@@ -331,7 +331,7 @@ fn run_best_of(
     dir: &Path,
     resume: bool,
     progress: Box<dyn Progress>,
-) -> anyhow::Result<Summary> {
+) -> crate::Result<Summary> {
     cfg.validate()?;
     let _lock = crate::runs::lock::lock_run_dir(dir)?;
     // The target is prepared once, in the run's folder, and every run fits it (a run
@@ -405,7 +405,7 @@ fn run_best_of(
         if from.is_file() {
             ifslab::io::write_atomic(
                 &dir.join(name),
-                &std::fs::read(&from).with_context(|| format!("reading {}", from.display()))?,
+                &std::fs::read(&from).doing("reading", &from)?,
             )?;
         }
     }
@@ -436,7 +436,7 @@ fn new_run_dir(
     cfg: &InversionConfig,
     dir: &Path,
     framed: Option<Framed>,
-) -> anyhow::Result<Vec<f32>> {
+) -> crate::Result<Vec<f32>> {
     let size = cfg.target.size;
     let (target, reading) = match (framed, &cfg.target.image) {
         (Some((t, r)), _) => (t.to_vec(), r.cloned()),
@@ -447,7 +447,7 @@ fn new_run_dir(
         }
         (None, None) => (prepare_target(cfg)?, None),
     };
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    std::fs::create_dir_all(dir).doing("creating", dir)?;
     if let Some(r) = reading {
         r.save(&dir.join(TARGET_READING_FILE))?;
     }
@@ -466,7 +466,7 @@ fn run_one(
     resume: bool,
     progress: Box<dyn Progress>,
     framed: Option<Framed>,
-) -> anyhow::Result<Summary> {
+) -> crate::Result<Summary> {
     let _lock = crate::runs::lock::lock_run_dir(dir)?;
     let size = cfg.target.size;
     let target = if resume {
@@ -541,7 +541,7 @@ fn write_outputs(
     out: &InversionOutcome,
     target: &[f32],
     strip: bool,
-) -> anyhow::Result<(ImageMetrics, Option<String>)> {
+) -> crate::Result<(ImageMetrics, Option<String>)> {
     let size = cfg.target.size;
     let mut code = IfsCode::from_affine2(Some("recovered"), &out.maps)
         .context("the recovered code failed validation")?;
@@ -576,7 +576,7 @@ fn write_outputs(
 
 /// The recovered code of the run in `dir` (`code.json`): its maps, evaluation probabilities
 /// and the seed of the run that found it (`cfg.seed` where the file does not say).
-fn recovered_code(dir: &Path, seed: u64) -> anyhow::Result<(IfsCode, Vec<Affine2>, Vec<f64>, u64)> {
+fn recovered_code(dir: &Path, seed: u64) -> crate::Result<(IfsCode, Vec<Affine2>, Vec<f64>, u64)> {
     let code_path = dir.join("code.json");
     let code = IfsCode::load(&code_path)
         .with_context(|| format!("loading the recovered code {}", code_path.display()))?;
@@ -595,7 +595,7 @@ fn recovered_code(dir: &Path, seed: u64) -> anyhow::Result<(IfsCode, Vec<Affine2
 
 /// Draws the zoom strip of the finished run in `dir` from its `code.json` (its framing and
 /// seed), as [`write_outputs`] would have.
-fn draw_zoom_strip(dir: &Path) -> anyhow::Result<()> {
+fn draw_zoom_strip(dir: &Path) -> crate::Result<()> {
     let (code, maps, probs, seed) = recovered_code(dir, 0)?;
     let window = code
         .framing
@@ -604,7 +604,7 @@ fn draw_zoom_strip(dir: &Path) -> anyhow::Result<()> {
 }
 
 /// Writes a `size × size` grey picture (values in [0, 1]) as an 8-bit PNG.
-fn save_square_grey(path: &Path, values: &[f32], size: usize) -> anyhow::Result<()> {
+fn save_square_grey(path: &Path, values: &[f32], size: usize) -> crate::Result<()> {
     save_grey_png(
         path,
         values,
@@ -621,7 +621,7 @@ fn save_square_grey(path: &Path, values: &[f32], size: usize) -> anyhow::Result<
 /// `truth.png` (code and suite targets, or the `target.truth` code), `zoom_strip.png`, and
 /// `loss.png` where the folder has a `log.csv`. The renders are seeded as the run's were, so
 /// they are its pictures. Returns the files written.
-pub fn redraw_pictures(cfg: &InversionConfig, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
+pub fn redraw_pictures(cfg: &InversionConfig, dir: &Path) -> crate::Result<Vec<PathBuf>> {
     let size = cfg.target.size;
     let (_, maps, probs, seed) = recovered_code(dir, cfg.seed)?;
     let mut written = Vec::new();
@@ -658,7 +658,7 @@ pub fn redraw_pictures(cfg: &InversionConfig, dir: &Path) -> anyhow::Result<Vec<
 }
 
 /// The LPIPS network for scoring `size²` renders, or why there is none.
-fn lpips_for_metrics(size: usize) -> anyhow::Result<(Option<Lpips>, Option<String>)> {
+fn lpips_for_metrics(size: usize) -> crate::Result<(Option<Lpips>, Option<String>)> {
     let rect = border_crop_rect(size, size, EVAL_BORDER_FRACTION)?;
     if rect.2.min(rect.3) < LPIPS_MIN_SIDE {
         return Ok((
@@ -697,7 +697,7 @@ pub fn zoom_strip(
     base: &Window,
     path: &Path,
     seed: u64,
-) -> anyhow::Result<()> {
+) -> crate::Result<()> {
     const PANEL: u32 = 256;
     const CAPTION: u32 = 28;
     let center = interesting_point(maps).unwrap_or_else(|| base.center());
@@ -755,9 +755,8 @@ pub fn zoom_strip(
 }
 
 /// Plots `loss` and each logged term of a run's CSV log against the iteration.
-pub fn loss_plot(log: &Path, out: &Path) -> anyhow::Result<()> {
-    let text =
-        std::fs::read_to_string(log).with_context(|| format!("reading {}", log.display()))?;
+pub fn loss_plot(log: &Path, out: &Path) -> crate::Result<()> {
+    let text = std::fs::read_to_string(log).doing("reading", log)?;
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().context("empty log")?.split(',').collect();
     let rows: Vec<Vec<f64>> = lines

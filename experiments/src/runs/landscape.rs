@@ -6,7 +6,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use anyhow::{Context, bail};
+use crate::error::{Context, bail};
 use ifslab::model::IfsCode;
 use ifslab::model::segment::PatternFile;
 use ifslab_strategies::problems::image::{
@@ -64,7 +64,7 @@ pub fn run_landscape(
     lc: &LandscapeConfig,
     out: &Path,
     progress: &dyn Progress,
-) -> anyhow::Result<LandscapeReport> {
+) -> crate::Result<LandscapeReport> {
     let cfg_path = run_dir.join(CONFIG_FILE);
     if !cfg_path.is_file() {
         bail!(
@@ -129,7 +129,7 @@ fn run_sdf_landscape(
     lc: &LandscapeConfig,
     out: &Path,
     progress: &dyn Progress,
-) -> anyhow::Result<LandscapeReport> {
+) -> crate::Result<LandscapeReport> {
     if cfg.learned.is_some() {
         bail!(
             "{}: the landscape of a learned-pattern fit is not supported",
@@ -187,11 +187,11 @@ fn write_landscape(
     title: &str,
     term: &'static str,
     param: &str,
-) -> anyhow::Result<LandscapeReport> {
+) -> crate::Result<LandscapeReport> {
     let mut csv = String::from("alpha,beta,total,msmse\n");
     let n = l.alphas.len();
     for (k, (t, m)) in l.total.iter().zip(&l.msmse).enumerate() {
-        writeln!(csv, "{},{},{t},{m}", l.alphas[k % n], l.betas[k / n])?;
+        let _ = writeln!(csv, "{},{},{t},{m}", l.alphas[k % n], l.betas[k / n]);
     }
     ifslab::io::write_atomic(&out.with_extension("csv"), csv.as_bytes())?;
     let (ma, mb, mv) = l.minimum();

@@ -50,9 +50,9 @@ impl Progress for LegProgress {
 /// Refuses to start a run in `dir` when its first leg (`first_leg`, a folder inside it)
 /// already holds a checkpoint: the same words as a single run's refusal, naming the run's
 /// folder (not the leg's) in the command that continues it.
-pub fn refuse_existing_legs(dir: &Path, first_leg: &str) -> anyhow::Result<()> {
+pub fn refuse_existing_legs(dir: &Path, first_leg: &str) -> crate::Result<()> {
     if dir.join(first_leg).join(CHECKPOINT_FILE).exists() {
-        anyhow::bail!(
+        crate::error::bail!(
             "{} already holds a run ({first_leg}/{CHECKPOINT_FILE}); continue it with --resume {} \
              or choose another output folder",
             dir.display(),

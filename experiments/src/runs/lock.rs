@@ -3,7 +3,7 @@
 use std::fs::{File, TryLockError};
 use std::path::Path;
 
-use anyhow::Context;
+use crate::error::IoContext;
 
 /// The lock file a run holds in its folder while it writes there.
 pub const LOCK_FILE: &str = ".ifslab.lock";
@@ -39,16 +39,16 @@ impl Drop for RunLock {
 /// the same folder is refused instead of writing it too. The lock is an advisory `flock` on
 /// `dir/.ifslab.lock`, released when the returned guard is dropped or the process ends,
 /// however it ends.
-pub fn lock_run_dir(dir: &Path) -> anyhow::Result<RunLock> {
+pub fn lock_run_dir(dir: &Path) -> crate::Result<RunLock> {
     let created = !dir.exists();
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    std::fs::create_dir_all(dir).doing("creating", dir)?;
     let path = dir.join(LOCK_FILE);
     let file = File::options()
         .create(true)
         .truncate(false)
         .write(true)
         .open(&path)
-        .with_context(|| format!("opening {}", path.display()))?;
+        .doing("opening", &path)?;
     let lock = RunLock {
         file,
         dir: dir.to_path_buf(),
@@ -60,14 +60,15 @@ pub fn lock_run_dir(dir: &Path) -> anyhow::Result<RunLock> {
             // Not ours to clean up: the other process's folder.
             let mut lock = lock;
             lock.created = false;
-            anyhow::bail!(
-                "another ifslab process is writing {} (it holds {LOCK_FILE}); wait for it to \
-                 end, or choose another output folder",
-                dir.display()
-            )
+            Err(crate::Error::Locked {
+                path: dir.to_path_buf(),
+                message: format!(
+                    "another ifslab process is writing {} (it holds {LOCK_FILE}); wait for it \
+                     to end, or choose another output folder",
+                    dir.display()
+                ),
+            })
         }
-        Err(TryLockError::Error(e)) => {
-            Err(e).with_context(|| format!("locking {}", path.display()))
-        }
+        Err(TryLockError::Error(e)) => Err(e).doing("locking", &path),
     }
 }

@@ -33,14 +33,14 @@ pub use config::{RunConfig, RunReport};
 
 use std::path::{Path, PathBuf};
 
-use anyhow::bail;
+use crate::error::bail;
 
 /// Draws the pictures of a finished run folder again from its `config.toml`, results and
 /// log (a folder written back from a pack: [`crate::sweep::pack`]); returns the files
 /// written. Image inversions get every picture ([`inversion::redraw_pictures`]); a learned
 /// flame its `loss.png` (its renders need the learned stack, which only its run has); a run
 /// of another problem is quick to run again, which is what the error says.
-pub fn redraw_pictures(dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
+pub fn redraw_pictures(dir: &Path) -> crate::Result<Vec<PathBuf>> {
     match RunConfig::load_resolved(&dir.join(inversion::CONFIG_FILE))? {
         RunConfig::Image(cfg) => inversion::redraw_pictures(&cfg, dir),
         RunConfig::Flame(_) => {

@@ -13,7 +13,7 @@ use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
 
-use anyhow::Context;
+use crate::error::{Context, IoContext};
 use ifslab::model::segment::{Pattern, PatternFile, resolve_pattern};
 use ifslab::render::FIT_FILL;
 use ifslab::render::image_io::{BitDepth, save_grey_png};
@@ -108,7 +108,7 @@ struct Leg {
 }
 
 impl Leg {
-    fn score(problem: SdfProblem, out: SdfOutcome, ink: &[f64]) -> anyhow::Result<Leg> {
+    fn score(problem: SdfProblem, out: SdfOutcome, ink: &[f64]) -> crate::Result<Leg> {
         let image = problem.image(&out.theta)?;
         let mse = image
             .iter()
@@ -153,8 +153,8 @@ fn run_legs(
     dir: &Path,
     resume: bool,
     progress: Arc<dyn Progress>,
-    truth_iou: &dyn Fn(&Pattern) -> anyhow::Result<Option<f64>>,
-) -> anyhow::Result<(Timed, Vec<SdfLegSummary>)> {
+    truth_iou: &dyn Fn(&Pattern) -> crate::Result<Option<f64>>,
+) -> crate::Result<(Timed, Vec<SdfLegSummary>)> {
     progress.start(cfg.strategy.name(), cfg.iterations * legs.len() as u64);
     let clock = Instant::now();
     let mut fresh = 0;
@@ -235,12 +235,7 @@ pub const TRUTH_SIGMA: f64 = 1.5;
 
 /// The ink of `pattern` at `depth` and width `sigma`, framed in its own box on a `size²`
 /// canvas as a target is framed ([`FIT_FILL`]).
-fn framed_ink(
-    pattern: &Pattern,
-    size: usize,
-    depth: usize,
-    sigma: f64,
-) -> anyhow::Result<Vec<f64>> {
+fn framed_ink(pattern: &Pattern, size: usize, depth: usize, sigma: f64) -> crate::Result<Vec<f64>> {
     let tree = WordTree::new(&pattern.maps()?, pattern.base_points(), depth)?;
     let (lo, hi) = tree.bbox();
     let view = SdfView::around(lo, hi, size, FIT_FILL);
@@ -264,8 +259,8 @@ pub fn pattern_iou(
     size: usize,
     depth: usize,
     sigma: f64,
-) -> anyhow::Result<f64> {
-    let mask = |p: &Pattern| -> anyhow::Result<Vec<bool>> {
+) -> crate::Result<f64> {
+    let mask = |p: &Pattern| -> crate::Result<Vec<bool>> {
         Ok(framed_ink(p, size, depth, sigma)?
             .iter()
             .map(|&v| v >= INK)
@@ -280,7 +275,7 @@ pub fn run(
     dir: &Path,
     resume: bool,
     progress: Box<dyn Progress>,
-) -> anyhow::Result<SdfSummary> {
+) -> crate::Result<SdfSummary> {
     cfg.validate()?;
     let _lock = crate::runs::lock::lock_run_dir(dir)?;
     let size = cfg.size;
@@ -305,7 +300,7 @@ pub fn run(
             // A truth that does not load is refused before the fit, not after it.
             resolve_pattern(spec).with_context(|| format!("`truth` {spec}"))?;
         }
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        std::fs::create_dir_all(dir).doing("creating", dir)?;
         let resolved = crate::runs::RunConfig::Sdf(Box::new(cfg.clone())).to_table()?;
         ifslab::io::write_atomic(
             &dir.join(CONFIG_FILE),
@@ -329,7 +324,7 @@ pub fn run(
         Some(spec) => Some(resolve_pattern(spec).with_context(|| format!("`truth` {spec}"))?),
         None => None,
     };
-    let truth_iou = |p: &Pattern| -> anyhow::Result<Option<f64>> {
+    let truth_iou = |p: &Pattern| -> crate::Result<Option<f64>> {
         truth
             .as_ref()
             .map(|t| pattern_iou(t, p, TRUTH_SIZE, cfg.depth, TRUTH_SIGMA))
@@ -443,7 +438,7 @@ pub fn run(
     loss_plot(&out.log, &dir.join("loss.png"))?;
     if !legs.is_empty() {
         // The kept fit's log where a single fit's would be.
-        let log = std::fs::read(&out.log).with_context(|| format!("{}", out.log.display()))?;
+        let log = std::fs::read(&out.log).io_context(&out.log, || out.log.display())?;
         ifslab::io::write_atomic(&dir.join("log.csv"), &log)?;
     }
     // The kept fit was scored against the truth with the others.

@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use anyhow::{Context, bail};
+use crate::error::{Context, IoContext, bail};
 use ifslab_strategies::recipe;
 
 /// The config key that names the problem a config describes.
@@ -29,7 +29,7 @@ pub fn problem_of(table: &toml::Table) -> &str {
 
 /// Sets the dotted `key` (`renderer.device`) of `table` to `value`, making the tables on
 /// the way; refuses a key that runs through a value that is not a table.
-pub fn set_dotted(table: &mut toml::Table, key: &str, value: toml::Value) -> anyhow::Result<()> {
+pub fn set_dotted(table: &mut toml::Table, key: &str, value: toml::Value) -> crate::Result<()> {
     let parts: Vec<&str> = key.split('.').collect();
     let (last, path) = parts.split_last().context("an empty config key")?;
     let mut t = table;
@@ -55,12 +55,11 @@ pub fn set_dotted(table: &mut toml::Table, key: &str, value: toml::Value) -> any
 /// `trim_outliers` only when they are on, so absent they were off (and absent from every
 /// run made before they existed), and `keep` only when it is the closeness, so absent the
 /// likelihood kept the run.
-pub fn read_resolved(path: &Path) -> anyhow::Result<toml::Table> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+pub fn read_resolved(path: &Path) -> crate::Result<toml::Table> {
+    let text = std::fs::read_to_string(path).doing("reading", path)?;
     let mut table: toml::Table = text
         .parse()
-        .with_context(|| format!("{} is not valid TOML", path.display()))?;
+        .config_context(path, || format!("{} is not valid TOML", path.display()))?;
     let problem = problem_of(&table).to_owned();
     if HAS_RECIPES.contains(&problem.as_str()) {
         recipe::mark_legacy(&mut table);

@@ -19,7 +19,7 @@
 
 use std::path::Path;
 
-use anyhow::Context;
+use crate::error::Context;
 use ifslab::model::code::Window;
 use ifslab::model::flame::{Flame, read_flames};
 use ifslab::progress::Progress;
@@ -44,16 +44,16 @@ pub struct FlameTiles {
 impl FlameTiles {
     /// The flames of `path` (all of them laid over one another; `name` picks one) in tiles
     /// of at most `samples` samples each, and the tiling of the first flame's framing.
-    pub fn load(path: &Path, name: Option<&str>, samples: u64, seed: u64) -> anyhow::Result<Self> {
+    pub fn load(path: &Path, name: Option<&str>, samples: u64, seed: u64) -> crate::Result<Self> {
         let mut layers = read_flames(path)?;
         if let Some(n) = name {
             layers.retain(|f| f.name.as_deref() == Some(n));
             if layers.is_empty() {
-                anyhow::bail!("no flame named `{n}` in {}", path.display());
+                crate::error::bail!("no flame named `{n}` in {}", path.display());
             }
         }
         if layers.is_empty() {
-            anyhow::bail!("{} holds no flame", path.display());
+            crate::error::bail!("{} holds no flame", path.display());
         }
         for f in &layers {
             f.validate()
@@ -63,7 +63,7 @@ impl FlameTiles {
     }
 
     /// Tiles of `layers` (the first one framing them all).
-    pub fn new(layers: Vec<Flame>, samples: u64, seed: u64) -> anyhow::Result<Self> {
+    pub fn new(layers: Vec<Flame>, samples: u64, seed: u64) -> crate::Result<Self> {
         let first = layers.first().context("a flame file without flames")?;
         let ppu = first.pixels_per_unit();
         let side = first.size[0].max(first.size[1]) as f64 / ppu;
@@ -128,7 +128,7 @@ impl FlameTiles {
         &self,
         req: &TileRequest,
         progress: &dyn Progress,
-    ) -> anyhow::Result<Vec<u8>> {
+    ) -> crate::Result<Vec<u8>> {
         let cfg = |transparent| FlameRenderConfig {
             seed: self.seed,
             transparent,

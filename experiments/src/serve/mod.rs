@@ -24,7 +24,7 @@ pub mod tile;
 
 use std::path::Path;
 
-use anyhow::Context;
+use crate::error::{Context, IoContext};
 use ifslab::model::IfsCode;
 use ifslab::render::{FIT_FILL, fit_window};
 
@@ -79,11 +79,7 @@ impl TileSource {
     }
 
     /// The tile as a PNG file's bytes; `progress` may cancel it.
-    pub fn render_png(
-        &self,
-        req: &TileRequest,
-        progress: &dyn Progress,
-    ) -> anyhow::Result<Vec<u8>> {
+    pub fn render_png(&self, req: &TileRequest, progress: &dyn Progress) -> crate::Result<Vec<u8>> {
         match self {
             TileSource::Code(r) => r.render_png(req, progress),
             TileSource::Flame(f) => {
@@ -140,10 +136,10 @@ pub struct Site {
 impl Site {
     /// The site of a run folder (a folder with `code.json`), a code file or a built-in
     /// code's name.
-    pub fn load(source: &str, tiles: TileOptions) -> anyhow::Result<Self> {
+    pub fn load(source: &str, tiles: TileOptions) -> crate::Result<Self> {
         for n in [tiles.points, tiles.flame_samples] {
             if !(1..=MAX_POINTS_PER_TILE).contains(&n) {
-                anyhow::bail!(
+                crate::error::bail!(
                     "points per tile must lie in 1..={MAX_POINTS_PER_TILE}, got {n} (--points)"
                 );
             }
@@ -181,7 +177,7 @@ impl Site {
 
     /// A flame file's flames (layers laid over one another), and a flame run's target and
     /// loss curve when `run` is its folder.
-    fn flame(file: &Path, run: Option<&Path>, tiles: TileOptions) -> anyhow::Result<Self> {
+    fn flame(file: &Path, run: Option<&Path>, tiles: TileOptions) -> crate::Result<Self> {
         let samples = tiles.flame_samples;
         let source = FlameTiles::load(file, None, samples, tiles.seed)?;
         let tiling = source.tiling();
@@ -200,8 +196,7 @@ impl Site {
         if let Some(dir) = run {
             let target = dir.join("target.png");
             if target.is_file() {
-                let png = std::fs::read(&target)
-                    .with_context(|| format!("reading {}", target.display()))?;
+                let png = std::fs::read(&target).doing("reading", &target)?;
                 views.push(View::Picture {
                     name: "target".into(),
                     png,
@@ -209,10 +204,7 @@ impl Site {
             }
             let loss_path = dir.join("loss.png");
             if loss_path.is_file() {
-                loss = Some(
-                    std::fs::read(&loss_path)
-                        .with_context(|| format!("reading {}", loss_path.display()))?,
-                );
+                loss = Some(std::fs::read(&loss_path).doing("reading", &loss_path)?);
             }
         }
         views.push(View::Tiles {
@@ -230,10 +222,10 @@ impl Site {
 
     /// A run folder: `target.png` and `code.json` (framed alike, as the run wrote them)
     /// side by side, and `loss.png`.
-    fn run_folder(dir: &Path, tiles: TileOptions) -> anyhow::Result<Self> {
+    fn run_folder(dir: &Path, tiles: TileOptions) -> crate::Result<Self> {
         let code_path = dir.join("code.json");
         if !code_path.is_file() {
-            anyhow::bail!(
+            crate::error::bail!(
                 "{} is a folder without code.json: give a finished run folder (ifslab invert \
                  or ifslab run), a code file or a built-in code's name",
                 dir.display()
@@ -245,8 +237,7 @@ impl Site {
         let mut views = Vec::new();
         let target = dir.join("target.png");
         if target.is_file() {
-            let png =
-                std::fs::read(&target).with_context(|| format!("reading {}", target.display()))?;
+            let png = std::fs::read(&target).doing("reading", &target)?;
             views.push(View::Picture {
                 name: "target".into(),
                 png,
@@ -258,10 +249,7 @@ impl Site {
         });
         let loss_path = dir.join("loss.png");
         let loss = match loss_path.is_file() {
-            true => Some(
-                std::fs::read(&loss_path)
-                    .with_context(|| format!("reading {}", loss_path.display()))?,
-            ),
+            true => Some(std::fs::read(&loss_path).doing("reading", &loss_path)?),
             false => None,
         };
         let title = dir
@@ -334,7 +322,7 @@ impl Site {
 
 /// A code's tile renderer and its tiling: the code's `framing` if it has one, else the
 /// attractor fitted as `ifslab render` fits it, in a square.
-fn code_view(code: &IfsCode, tiles: TileOptions) -> anyhow::Result<(TileRenderer, Tiling)> {
+fn code_view(code: &IfsCode, tiles: TileOptions) -> crate::Result<(TileRenderer, Tiling)> {
     let maps = code.affine2().context("the viewer draws 2-D codes only")?;
     let probs = code.evaluation_probabilities()?;
     let window = match code.framing {

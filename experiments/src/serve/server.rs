@@ -30,7 +30,7 @@ use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use anyhow::Context;
+use crate::error::Context;
 
 use super::http::{self, Conn, ReadError, Response};
 use super::tile::TileRequest;
@@ -234,15 +234,19 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 }
 
 /// Starts serving `site`: binds, then answers on background threads; returns at once.
-pub fn serve(site: Site, opts: &ServeOptions) -> anyhow::Result<RunningServer> {
-    let ip: IpAddr = opts.host.parse().with_context(|| {
-        format!(
-            "--host must be an IP address (127.0.0.1 for this machine only), got `{}`",
-            opts.host
-        )
-    })?;
+pub fn serve(site: Site, opts: &ServeOptions) -> crate::Result<RunningServer> {
+    let ip = opts
+        .host
+        .parse::<IpAddr>()
+        .map_err(|e| crate::Error::invalid(e.to_string()))
+        .with_context(|| {
+            format!(
+                "--host must be an IP address (127.0.0.1 for this machine only), got `{}`",
+                opts.host
+            )
+        })?;
     if opts.workers == 0 {
-        anyhow::bail!("--workers must be at least 1");
+        crate::error::bail!("--workers must be at least 1");
     }
     let listener = TcpListener::bind(SocketAddr::new(ip, opts.port))
         .with_context(|| format!("cannot listen on {}:{}", opts.host, opts.port))?;
@@ -510,7 +514,7 @@ fn work(shared: &Shared) {
                 lock(&shared.cache).insert(key, bytes.clone());
                 png(bytes.to_vec())
             }
-            Ok(Err(e)) if is_cancelled(&e) => match shared.newer(job.tile.generation) {
+            Ok(Err(e)) if e.is_cancelled() => match shared.newer(job.tile.generation) {
                 Some(latest) => {
                     bump(&shared.stats.stale);
                     stale(&job, latest)
@@ -526,13 +530,4 @@ fn work(shared: &Shared) {
         // A client that left is no error of the server's.
         let _ = job.reply.send(answer);
     }
-}
-
-fn is_cancelled(e: &anyhow::Error) -> bool {
-    e.chain().any(|c| {
-        matches!(
-            c.downcast_ref::<ifslab::Error>(),
-            Some(ifslab::Error::Cancelled(_))
-        )
-    })
 }

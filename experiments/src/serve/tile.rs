@@ -118,7 +118,7 @@ pub struct Tiling {
 
 impl Tiling {
     /// Tiles of `window` made square (its longer side around its centre).
-    pub fn new(window: &Window) -> anyhow::Result<Self> {
+    pub fn new(window: &Window) -> crate::Result<Self> {
         window.validate()?;
         let [w, h] = window.size();
         let side = w.max(h);
@@ -442,7 +442,7 @@ impl TileRenderer {
         &self,
         req: &TileRequest,
         progress: &dyn Progress,
-    ) -> anyhow::Result<Vec<u8>> {
+    ) -> crate::Result<Vec<u8>> {
         let colour = |v: f32| {
             let [r, g, b] = req.cmap.colour(v);
             [r, g, b, 255]
@@ -469,7 +469,9 @@ impl TileRenderer {
                 }
                 Ok(rgba)
             }
-            TileMode::Colour => anyhow::bail!("a code's tiles are drawn as coverage or density"),
+            TileMode::Colour => {
+                crate::error::bail!("a code's tiles are drawn as coverage or density")
+            }
         }
     }
 
@@ -504,7 +506,7 @@ impl TileRenderer {
         &self,
         req: &TileRequest,
         progress: &dyn Progress,
-    ) -> anyhow::Result<DensityTile> {
+    ) -> crate::Result<DensityTile> {
         let raster = self.render_raster(req, RenderMode::Density, progress)?;
         let s = &raster.stats;
         let [w, h] = s.window.size();
@@ -537,7 +539,7 @@ impl TileRenderer {
 
     /// The code's density tone map, from its level-0 tile (drawn once, by the first density
     /// tile that needs it; `progress` may cancel that, and the next tile draws it again).
-    pub fn tone_map(&self, progress: &dyn Progress) -> anyhow::Result<ToneMap> {
+    pub fn tone_map(&self, progress: &dyn Progress) -> crate::Result<ToneMap> {
         if let Some(t) = self.tone.get() {
             return Ok(*t);
         }
@@ -561,7 +563,7 @@ impl TileRenderer {
         req: &TileRequest,
         mode: RenderMode,
         progress: &dyn Progress,
-    ) -> anyhow::Result<Raster> {
+    ) -> crate::Result<Raster> {
         let cfg = RenderConfig {
             width: req.size,
             height: req.size,
@@ -577,18 +579,14 @@ impl TileRenderer {
     }
 
     /// The tile as a PNG file's bytes.
-    pub fn render_png(
-        &self,
-        req: &TileRequest,
-        progress: &dyn Progress,
-    ) -> anyhow::Result<Vec<u8>> {
+    pub fn render_png(&self, req: &TileRequest, progress: &dyn Progress) -> crate::Result<Vec<u8>> {
         let rgba = self.render_rgba(req, progress)?;
         encode_png(&rgba, req.size, req.size)
     }
 }
 
 /// RGBA pixels as a PNG (fast compression: a tile is made to be sent at once).
-pub fn encode_png(rgba: &[u8], width: u32, height: u32) -> anyhow::Result<Vec<u8>> {
+pub fn encode_png(rgba: &[u8], width: u32, height: u32) -> crate::Result<Vec<u8>> {
     use image::codecs::png::{CompressionType, FilterType, PngEncoder};
     use image::{ExtendedColorType, ImageEncoder};
     let mut bytes = Vec::new();

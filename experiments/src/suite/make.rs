@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
-use anyhow::{Context, bail};
+use crate::error::{Context, IoContext, bail, bail_config};
 use ifslab::chaos::ChaosGame;
 use ifslab::chaos::{mix_seed, trajectory_rng};
 use ifslab::model::random::sample_code;
@@ -59,8 +59,8 @@ impl Tier {
 }
 
 impl FromStr for Tier {
-    type Err = anyhow::Error;
-    fn from_str(s: &str) -> anyhow::Result<Self> {
+    type Err = crate::Error;
+    fn from_str(s: &str) -> crate::Result<Self> {
         Ok(match s {
             "smoke" => Tier::Smoke,
             "medium" => Tier::Medium,
@@ -105,7 +105,7 @@ impl SuiteSpec {
         }
     }
 
-    fn validate(&self) -> anyhow::Result<()> {
+    fn validate(&self) -> crate::Result<()> {
         if !(1..=100_000).contains(&self.codes) {
             bail!("--codes must lie in 1..=100000, got {}", self.codes);
         }
@@ -194,7 +194,7 @@ pub struct Manifest {
 
 impl Manifest {
     /// Entry `index`, or an error naming the suite's size.
-    pub fn entry(&self, index: usize) -> anyhow::Result<&CodeEntry> {
+    pub fn entry(&self, index: usize) -> crate::Result<&CodeEntry> {
         self.codes.get(index).with_context(|| {
             format!(
                 "the suite has codes 0..{}, there is no code {index}",
@@ -205,19 +205,20 @@ impl Manifest {
 }
 
 /// Loads and checks `DIR/suite.json`.
-pub fn load(dir: &Path) -> anyhow::Result<Manifest> {
+pub fn load(dir: &Path) -> crate::Result<Manifest> {
     let path = dir.join(MANIFEST);
-    let text = std::fs::read_to_string(&path).with_context(|| {
+    let text = std::fs::read_to_string(&path).io_context(&path, || {
         format!(
             "reading {} (make a suite with `ifslab suite make -o {}`)",
             path.display(),
             dir.display()
         )
     })?;
-    let m: Manifest =
-        serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+    let m: Manifest = serde_json::from_str(&text)
+        .config_context(&path, || format!("parsing {}", path.display()))?;
     if m.format != FORMAT {
-        bail!(
+        bail_config!(
+            &path,
             "{}: format `{}`, expected `{FORMAT}`",
             path.display(),
             m.format
@@ -225,7 +226,7 @@ pub fn load(dir: &Path) -> anyhow::Result<Manifest> {
     }
     for (i, c) in m.codes.iter().enumerate() {
         if c.index != i || c.views.is_empty() {
-            bail!("{}: code entry {i} is malformed", path.display());
+            bail_config!(&path, "{}: code entry {i} is malformed", path.display());
         }
     }
     Ok(m)
@@ -235,13 +236,13 @@ const SPEC_FILE: &str = "spec.json";
 const VIEWS_FILE: &str = "views.json";
 
 /// Makes (or completes) the suite `spec` in `dir`; `progress` counts codes.
-pub fn make(spec: &SuiteSpec, dir: &Path, progress: &dyn Progress) -> anyhow::Result<Manifest> {
+pub fn make(spec: &SuiteSpec, dir: &Path, progress: &dyn Progress) -> crate::Result<Manifest> {
     spec.validate()?;
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    std::fs::create_dir_all(dir).doing("creating", dir)?;
     let spec_path = dir.join(SPEC_FILE);
     if spec_path.is_file() {
         let old: SuiteSpec = serde_json::from_str(&std::fs::read_to_string(&spec_path)?)
-            .with_context(|| format!("parsing {}", spec_path.display()))?;
+            .config_context(&spec_path, || format!("parsing {}", spec_path.display()))?;
         if old != *spec {
             bail!(
                 "{} holds a different suite ({}); give another folder",
@@ -259,7 +260,7 @@ pub fn make(spec: &SuiteSpec, dir: &Path, progress: &dyn Progress) -> anyhow::Re
         let views = folder.join(VIEWS_FILE);
         let entry = if views.is_file() {
             serde_json::from_str(&std::fs::read_to_string(&views)?)
-                .with_context(|| format!("parsing {}", views.display()))?
+                .config_context(&views, || format!("parsing {}", views.display()))?
         } else {
             make_code(spec, dir, index)?
         };
@@ -280,7 +281,7 @@ pub fn make(spec: &SuiteSpec, dir: &Path, progress: &dyn Progress) -> anyhow::Re
 }
 
 /// Draws code `index`, renders its views into `.NNN.partial/` and renames it.
-fn make_code(spec: &SuiteSpec, dir: &Path, index: usize) -> anyhow::Result<CodeEntry> {
+fn make_code(spec: &SuiteSpec, dir: &Path, index: usize) -> crate::Result<CodeEntry> {
     let name = format!("{index:03}");
     let mut rng = trajectory_rng(spec.seed ^ 0x5017_E5EE_D000_0000, index as u64);
     let [lo, hi] = spec.maps;
@@ -296,8 +297,7 @@ fn make_code(spec: &SuiteSpec, dir: &Path, index: usize) -> anyhow::Result<CodeE
 
     let partial = dir.join(format!(".{name}.partial"));
     if partial.exists() {
-        std::fs::remove_dir_all(&partial)
-            .with_context(|| format!("removing {}", partial.display()))?;
+        std::fs::remove_dir_all(&partial).doing("removing", &partial)?;
     }
     std::fs::create_dir_all(&partial)?;
     code.save(partial.join("code.json"))?;
@@ -363,8 +363,7 @@ fn make_code(spec: &SuiteSpec, dir: &Path, index: usize) -> anyhow::Result<CodeE
         &partial.join(VIEWS_FILE),
         serde_json::to_string_pretty(&entry)?.as_bytes(),
     )?;
-    std::fs::rename(&partial, dir.join(&name))
-        .with_context(|| format!("finishing {}", dir.join(&name).display()))?;
+    std::fs::rename(&partial, dir.join(&name)).doing("finishing", &dir.join(&name))?;
     Ok(entry)
 }
 
@@ -378,7 +377,7 @@ pub(super) fn render_view(
     factor: f64,
     center: [f64; 2],
     seed: u64,
-) -> anyhow::Result<Raster> {
+) -> crate::Result<Raster> {
     let size = window.size();
     let world = [
         window.min[0] + center[0] * size[0],
@@ -403,7 +402,7 @@ fn save_view(
     factor: f64,
     center: [f64; 2],
     raster: &Raster,
-) -> anyhow::Result<ViewEntry> {
+) -> crate::Result<ViewEntry> {
     let file = format!("{name}.png");
     save_grey_png(
         &folder.join(&file),

@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use anyhow::Context;
+use crate::error::Context;
 use ifslab::loss::lpips::{LPIPS_MIN_SIDE, Lpips};
 use ifslab::metrics::{EVAL_BORDER_FRACTION, cropped_metrics};
 use ifslab::model::{Affine2, IfsCode};
@@ -74,7 +74,7 @@ pub fn score_code(
     index: usize,
     code: &IfsCode,
     net: Option<&Lpips>,
-) -> anyhow::Result<SuiteScore> {
+) -> crate::Result<SuiteScore> {
     let maps = code.affine2().context("a suite scores 2-D codes")?;
     let probs = code.evaluation_probabilities()?;
     score_maps(dir, manifest, index, &maps, &probs, net)
@@ -91,7 +91,7 @@ pub fn score_maps(
     maps: &[Affine2],
     probs: &[f64],
     net: Option<&Lpips>,
-) -> anyhow::Result<SuiteScore> {
+) -> crate::Result<SuiteScore> {
     let started = std::time::Instant::now();
     let entry: &CodeEntry = manifest.entry(index)?;
     let spec = &manifest.spec;
@@ -105,7 +105,7 @@ pub fn score_maps(
         let truth = load_grey(&truth_path)
             .with_context(|| format!("loading the suite's truth {}", truth_path.display()))?;
         if truth.width as usize != size || truth.height as usize != size {
-            anyhow::bail!(
+            crate::error::bail!(
                 "{} is {}×{}, the suite's tier renders {size}²",
                 truth_path.display(),
                 truth.width,

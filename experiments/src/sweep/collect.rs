@@ -11,7 +11,7 @@ use std::collections::BTreeSet;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use anyhow::Context;
+use crate::error::{Context, IoContext};
 use serde_json::{Map, Value};
 
 use super::expand::PlanIndex;
@@ -159,17 +159,18 @@ pub struct Aggregate {
 }
 
 /// Reads a sweep folder.
-pub fn collect(dir: &Path) -> anyhow::Result<Collected> {
+pub fn collect(dir: &Path) -> crate::Result<Collected> {
     let plan_path = dir.join(PLAN_FILE);
-    let text = std::fs::read_to_string(&plan_path).with_context(|| {
+    let text = std::fs::read_to_string(&plan_path).io_context(&plan_path, || {
         format!(
             "reading {}: is {} the output folder of `ifslab sweep`?",
             plan_path.display(),
             dir.display()
         )
     })?;
-    let plan: PlanIndex = serde_json::from_str(&text)
-        .with_context(|| format!("{} is not a sweep index", plan_path.display()))?;
+    let plan: PlanIndex = serde_json::from_str(&text).config_context(&plan_path, || {
+        format!("{} is not a sweep index", plan_path.display())
+    })?;
     let pack = Pack::beside(&dir.join(RUNS_DIR))?;
     let mut rows = Vec::new();
     let mut metrics: Vec<String> = Vec::new();
@@ -260,10 +261,10 @@ pub fn collect(dir: &Path) -> anyhow::Result<Collected> {
     })
 }
 
-fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> anyhow::Result<T> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    serde_json::from_str(&text).with_context(|| format!("{} is not valid JSON", path.display()))
+fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> crate::Result<T> {
+    let text = std::fs::read_to_string(path).doing("reading", path)?;
+    serde_json::from_str(&text)
+        .config_context(path, || format!("{} is not valid JSON", path.display()))
 }
 
 fn flatten_json(prefix: &str, v: &Value, out: &mut Map<String, Value>) {
@@ -322,7 +323,7 @@ impl Collected {
         out
     }
 
-    fn axis_index(&self, axis: &str) -> anyhow::Result<usize> {
+    fn axis_index(&self, axis: &str) -> crate::Result<usize> {
         self.axes.iter().position(|a| a == axis).with_context(|| {
             format!(
                 "the sweep has no axis `{axis}` (its axes: {})",
@@ -336,7 +337,7 @@ impl Collected {
     }
 
     /// The distinct labels of an axis, in sweep order.
-    pub fn values_of(&self, axis: &str) -> anyhow::Result<Vec<String>> {
+    pub fn values_of(&self, axis: &str) -> crate::Result<Vec<String>> {
         let k = self.axis_index(axis)?;
         let mut v: Vec<String> = Vec::new();
         for r in &self.rows {
@@ -358,7 +359,7 @@ impl Collected {
 
     /// The distinct [`Collected::key`]s of some axes, in sweep order; an unknown axis is
     /// an error.
-    pub fn keys_of(&self, axes: &[String]) -> anyhow::Result<Vec<String>> {
+    pub fn keys_of(&self, axes: &[String]) -> crate::Result<Vec<String>> {
         for a in axes {
             self.axis_index(a)?;
         }
@@ -384,11 +385,11 @@ impl Collected {
 
     /// The runs grouped by the labels of `by` (one or more axes), each metric's statistics
     /// over the finished runs of each group.
-    pub fn aggregate(&self, by: &[String]) -> anyhow::Result<Aggregate> {
+    pub fn aggregate(&self, by: &[String]) -> crate::Result<Aggregate> {
         let ks: Vec<usize> = by
             .iter()
             .map(|a| self.axis_index(a))
-            .collect::<anyhow::Result<_>>()?;
+            .collect::<crate::Result<_>>()?;
         let mut keys: Vec<Vec<String>> = Vec::new();
         for r in &self.rows {
             let key: Vec<String> = ks.iter().map(|&k| r.labels[k].clone()).collect();

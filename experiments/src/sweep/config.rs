@@ -31,7 +31,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, bail};
+use crate::error::{Context, IoContext, bail};
 use serde::{Deserialize, Serialize};
 
 /// A parsed sweep file, before expansion.
@@ -162,23 +162,24 @@ pub struct SlurmConfig {
 
 impl SweepConfig {
     /// Parses a sweep file's text; `origin` names it in errors.
-    pub fn from_toml(text: &str, origin: &Path) -> anyhow::Result<Self> {
-        let cfg: SweepConfig = toml::from_str(text)
-            .with_context(|| format!("{} is not a valid sweep file", origin.display()))?;
-        cfg.validate()
-            .with_context(|| format!("{} is not a valid sweep file", origin.display()))?;
+    pub fn from_toml(text: &str, origin: &Path) -> crate::Result<Self> {
+        let cfg: SweepConfig = toml::from_str(text).config_context(origin, || {
+            format!("{} is not a valid sweep file", origin.display())
+        })?;
+        cfg.validate().config_context(origin, || {
+            format!("{} is not a valid sweep file", origin.display())
+        })?;
         Ok(cfg)
     }
 
     /// Reads and parses a sweep file.
-    pub fn load(path: &Path) -> anyhow::Result<Self> {
-        let text =
-            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    pub fn load(path: &Path) -> crate::Result<Self> {
+        let text = std::fs::read_to_string(path).doing("reading", path)?;
         SweepConfig::from_toml(&text, path)
     }
 
     /// The checks that need no base config: every axis well formed, names unique.
-    pub fn validate(&self) -> anyhow::Result<()> {
+    pub fn validate(&self) -> crate::Result<()> {
         let mut names = Vec::new();
         for a in &self.axis {
             a.validate()?;
@@ -225,7 +226,7 @@ impl AxisConfig {
             .unwrap_or_default()
     }
 
-    fn validate(&self) -> anyhow::Result<()> {
+    fn validate(&self) -> crate::Result<()> {
         let kinds = [
             self.values.is_some(),
             self.folder.is_some(),

@@ -4,7 +4,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, bail};
+use crate::error::{Context, IoContext, bail};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
@@ -85,24 +85,23 @@ pub struct RunIndex {
 
 impl Plan {
     /// Reads, expands and validates a sweep file.
-    pub fn load(path: &Path) -> anyhow::Result<Self> {
+    pub fn load(path: &Path) -> crate::Result<Self> {
         let cfg = SweepConfig::load(path)?;
         Plan::expand(&cfg, path)
     }
 
     /// Expands a parsed sweep (`path`: the file it came from, for relative names).
-    pub fn expand(cfg: &SweepConfig, path: &Path) -> anyhow::Result<Self> {
-        let source =
-            std::path::absolute(path).with_context(|| format!("resolving {}", path.display()))?;
+    pub fn expand(cfg: &SweepConfig, path: &Path) -> crate::Result<Self> {
+        let source = std::path::absolute(path).doing("resolving", path)?;
         let here = source.parent().unwrap_or(Path::new("/")).to_path_buf();
         let (base, origin) = match &cfg.base {
             BaseConfig::File(f) => {
                 let f = here.join(f);
                 let text = std::fs::read_to_string(&f)
-                    .with_context(|| format!("reading the base config {}", f.display()))?;
+                    .io_context(&f, || format!("reading the base config {}", f.display()))?;
                 let table: toml::Table = text
                     .parse()
-                    .with_context(|| format!("{} is not valid TOML", f.display()))?;
+                    .config_context(&f, || format!("{} is not valid TOML", f.display()))?;
                 (table, f)
             }
             BaseConfig::Inline(t) => (t.clone(), source.clone()),
@@ -116,7 +115,7 @@ impl Plan {
             .axis
             .iter()
             .map(|a| Axis::resolve(a, &here))
-            .collect::<anyhow::Result<_>>()?;
+            .collect::<crate::Result<_>>()?;
         // Each group (or the whole sweep when there are none): its overrides and axes.
         let mut blocks: Vec<(Option<String>, toml::Table, Vec<Axis>)> = Vec::new();
         if cfg.group.is_empty() {
@@ -127,7 +126,7 @@ impl Plan {
                 .axis
                 .iter()
                 .map(|a| Axis::resolve(a, &here))
-                .collect::<anyhow::Result<_>>()
+                .collect::<crate::Result<_>>()
                 .with_context(|| format!("in group `{}`", g.name))?;
             blocks.push((Some(g.name.clone()), g.set.clone(), axes));
         }
@@ -164,7 +163,7 @@ impl Plan {
                         set_dotted(table, k, v.clone())?;
                         applied.push(format!("{k} = {v}"));
                     }
-                    anyhow::Ok(())
+                    Ok::<_, crate::Error>(())
                 };
                 let index = runs.len();
                 let what = |labels: &[(String, String)]| {
@@ -234,7 +233,7 @@ impl Plan {
     /// Keeps only the runs whose labels match: `filters` are (axis, label) pairs; runs
     /// must match one label of every axis named (`--only group=em --only seed=0`). Shards
     /// split what is left (every task of a job array applies the same filters).
-    pub fn retain(&mut self, filters: &[(String, String)]) -> anyhow::Result<()> {
+    pub fn retain(&mut self, filters: &[(String, String)]) -> crate::Result<()> {
         let mut axes: Vec<&str> = Vec::new();
         for (axis, label) in filters {
             if !self.axes.contains(axis) {
@@ -434,7 +433,7 @@ struct AxisValue {
 }
 
 impl Axis {
-    fn resolve(a: &AxisConfig, here: &Path) -> anyhow::Result<Self> {
+    fn resolve(a: &AxisConfig, here: &Path) -> crate::Result<Self> {
         let name = a.display_name();
         let mut values = Vec::new();
         if let Some(vs) = &a.values {
@@ -453,7 +452,9 @@ impl Axis {
             let folder = here.join(folder);
             let key = a.key.clone().unwrap_or_default();
             let mut files: Vec<PathBuf> = std::fs::read_dir(&folder)
-                .with_context(|| format!("axis `{name}`: reading the folder {}", folder.display()))?
+                .io_context(&folder, || {
+                    format!("axis `{name}`: reading the folder {}", folder.display())
+                })?
                 .filter_map(|e| e.ok().map(|e| e.path()))
                 .filter(|p| {
                     p.is_file()

@@ -14,7 +14,7 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
-use anyhow::{Context, bail};
+use crate::error::{Context, IoContext, bail};
 use serde::{Deserialize, Serialize};
 
 use super::expand::{Plan, PlannedRun};
@@ -39,7 +39,7 @@ pub struct FinishedRuns {
 
 impl FinishedRuns {
     /// Looks at the sweep folder `out` (a folder without runs or pack has none).
-    pub fn of(out: &Path) -> anyhow::Result<Self> {
+    pub fn of(out: &Path) -> crate::Result<Self> {
         let pack = Pack::beside(&out.join(RUNS_DIR))?;
         Ok(FinishedRuns {
             out: out.to_path_buf(),
@@ -95,7 +95,7 @@ pub struct RunnerOptions {
 
 impl RunnerOptions {
     /// `jobs` at once, the machine's cores shared between them.
-    pub fn new(jobs: usize, threads: Option<usize>, shard: Shard) -> anyhow::Result<Self> {
+    pub fn new(jobs: usize, threads: Option<usize>, shard: Shard) -> crate::Result<Self> {
         if jobs == 0 {
             bail!("--jobs must be at least 1");
         }
@@ -127,7 +127,7 @@ impl RunnerOptions {
 /// names how many of `runs` are affected and the missing file.
 pub fn check_lpips_weights<'a>(
     runs: impl IntoIterator<Item = &'a PlannedRun>,
-) -> anyhow::Result<()> {
+) -> crate::Result<()> {
     let missing: Vec<PathBuf> = runs
         .into_iter()
         .filter_map(|r| r.config.missing_lpips_weights())
@@ -199,9 +199,8 @@ impl SweepOutcome {
 }
 
 /// Writes the plan's index into `out` (every call does: shards write the same bytes).
-pub fn write_plan(plan: &Plan, out: &Path) -> anyhow::Result<()> {
-    std::fs::create_dir_all(out.join(RUNS_DIR))
-        .with_context(|| format!("creating {}", out.join(RUNS_DIR).display()))?;
+pub fn write_plan(plan: &Plan, out: &Path) -> crate::Result<()> {
+    std::fs::create_dir_all(out.join(RUNS_DIR)).doing("creating", &out.join(RUNS_DIR))?;
     let text = serde_json::to_string_pretty(&plan.index())?;
     ifslab::io::write_atomic(&out.join(PLAN_FILE), text.as_bytes())?;
     Ok(())
@@ -215,7 +214,7 @@ pub fn run_sweep(
     opts: &RunnerOptions,
     overall: &dyn Progress,
     per_run: &(dyn Fn(&PlannedRun) -> Box<dyn Progress> + Sync),
-) -> anyhow::Result<SweepOutcome> {
+) -> crate::Result<SweepOutcome> {
     let mine: Vec<&PlannedRun> = plan
         .runs
         .iter()
@@ -271,10 +270,11 @@ pub fn run_sweep(
     });
     overall.finish();
     if ifslab::interrupt::requested() {
-        anyhow::bail!(
+        return Err(crate::Error::Interrupted(
             "interrupted: the runs under way stopped at a checkpoint; run the same sweep \
              command again to resume them and do the rest"
-        );
+                .into(),
+        ));
     }
     outcome
         .runs
@@ -289,21 +289,21 @@ fn run_one(
     out: &Path,
     threads: usize,
     per_run: &(dyn Fn(&PlannedRun) -> Box<dyn Progress> + Sync),
-) -> anyhow::Result<RunStatus> {
+) -> crate::Result<RunStatus> {
     let locks = out.join(RUNS_DIR).join(".locks");
-    std::fs::create_dir_all(&locks).with_context(|| format!("creating {}", locks.display()))?;
+    std::fs::create_dir_all(&locks).doing("creating", &locks)?;
     let lock_path = locks.join(&r.id);
     let lock = File::options()
         .create(true)
         .truncate(false)
         .write(true)
         .open(&lock_path)
-        .with_context(|| format!("opening {}", lock_path.display()))?;
+        .doing("opening", &lock_path)?;
     match lock.try_lock() {
         Ok(()) => {}
         Err(TryLockError::WouldBlock) => return Ok(RunStatus::Busy),
         Err(TryLockError::Error(e)) => {
-            return Err(e).with_context(|| format!("locking {}", lock_path.display()));
+            return Err(e).doing("locking", &lock_path);
         }
     }
     // Another process may have finished it between the first look and the lock.
@@ -331,8 +331,7 @@ fn run_one(
             // Stopped by a signal: its checkpoint stays for the next attempt.
             Err(_) if ifslab::interrupt::requested() => return Ok(RunStatus::Interrupted),
             Err(_) => {
-                std::fs::remove_dir_all(&partial)
-                    .with_context(|| format!("clearing {}", partial.display()))?;
+                std::fs::remove_dir_all(&partial).doing("clearing", &partial)?;
             }
         }
     }
@@ -340,11 +339,9 @@ fn run_one(
         Some(r) => r,
         None => {
             if partial.exists() {
-                std::fs::remove_dir_all(&partial)
-                    .with_context(|| format!("clearing {}", partial.display()))?;
+                std::fs::remove_dir_all(&partial).doing("clearing", &partial)?;
             }
-            std::fs::create_dir_all(&partial)
-                .with_context(|| format!("creating {}", partial.display()))?;
+            std::fs::create_dir_all(&partial).doing("creating", &partial)?;
             match pool.install(|| r.config.run(&partial, false, per_run(r))) {
                 Ok(rep) => rep,
                 Err(_) if ifslab::interrupt::requested() => return Ok(RunStatus::Interrupted),
@@ -371,7 +368,7 @@ fn run_one(
         serde_json::to_string_pretty(&record)?.as_bytes(),
     )?;
     let done = run_dir(out, &r.id);
-    std::fs::rename(&partial, &done).with_context(|| {
+    std::fs::rename(&partial, &done).io_context(&partial, || {
         format!(
             "moving the finished run {} to {}",
             partial.display(),
@@ -400,16 +397,14 @@ pub struct Adopted {
 /// is copied to `runs/ID/` as a finished run, so that `collect` tables it and the sweep does
 /// not run it again. Folders of other configs (other settings, or defaults that changed
 /// since) are left out and listed.
-pub fn adopt(plan: &Plan, out: &Path, from: &Path) -> anyhow::Result<Adopted> {
+pub fn adopt(plan: &Plan, out: &Path, from: &Path) -> crate::Result<Adopted> {
     write_plan(plan, out)?;
     let sweep_dir = plan.source.parent().unwrap_or(Path::new("/"));
     let folder = pack::runs_folder(from);
     let packed = Pack::beside(&folder)?;
     let mut candidates: Vec<(PathBuf, Option<&PackedRun>)> = Vec::new();
     if folder.is_dir() {
-        for e in
-            std::fs::read_dir(&folder).with_context(|| format!("reading {}", folder.display()))?
-        {
+        for e in std::fs::read_dir(&folder).doing("reading", &folder)? {
             let p = e?.path();
             if p.is_dir() {
                 candidates.push((p, None));
@@ -438,8 +433,7 @@ pub fn adopt(plan: &Plan, out: &Path, from: &Path) -> anyhow::Result<Adopted> {
             None => source.clone(),
             Some(r) => {
                 if staging.exists() {
-                    std::fs::remove_dir_all(&staging)
-                        .with_context(|| format!("clearing {}", staging.display()))?;
+                    std::fs::remove_dir_all(&staging).doing("clearing", &staging)?;
                 }
                 r.write_folder(&staging)?;
                 staging.clone()
@@ -473,20 +467,20 @@ pub fn adopt(plan: &Plan, out: &Path, from: &Path) -> anyhow::Result<Adopted> {
         }
         let partial = partial_dir(out, &id);
         if partial.exists() {
-            std::fs::remove_dir_all(&partial)
-                .with_context(|| format!("clearing {}", partial.display()))?;
+            std::fs::remove_dir_all(&partial).doing("clearing", &partial)?;
         }
         if packed_run.is_some() {
-            std::fs::rename(&d, &partial)
-                .with_context(|| format!("moving {} to {}", d.display(), partial.display()))?;
+            std::fs::rename(&d, &partial).io_context(&d, || {
+                format!("moving {} to {}", d.display(), partial.display())
+            })?;
         } else {
             copy_dir(&d, &partial)?;
         }
         let summary: serde_json::Value = serde_json::from_slice(
             &std::fs::read(partial.join("summary.json"))
-                .with_context(|| format!("reading {}", source.join("summary.json").display()))?,
+                .doing("reading", &source.join("summary.json"))?,
         )
-        .with_context(|| {
+        .config_context(&source.join("summary.json"), || {
             format!(
                 "{} is not valid JSON",
                 source.join("summary.json").display()
@@ -506,27 +500,28 @@ pub fn adopt(plan: &Plan, out: &Path, from: &Path) -> anyhow::Result<Adopted> {
             &partial.join(RECORD_FILE),
             serde_json::to_string_pretty(&record)?.as_bytes(),
         )?;
-        std::fs::rename(&partial, run_dir(out, &id))
-            .with_context(|| format!("moving {} into place", partial.display()))?;
+        std::fs::rename(&partial, run_dir(out, &id)).io_context(&partial, || {
+            format!("moving {} into place", partial.display())
+        })?;
         result.adopted.push((r.index, source));
     }
     if staging.exists() {
-        std::fs::remove_dir_all(&staging)
-            .with_context(|| format!("clearing {}", staging.display()))?;
+        std::fs::remove_dir_all(&staging).doing("clearing", &staging)?;
     }
     Ok(result)
 }
 
-fn copy_dir(from: &Path, to: &Path) -> anyhow::Result<()> {
-    std::fs::create_dir_all(to).with_context(|| format!("creating {}", to.display()))?;
-    for e in std::fs::read_dir(from).with_context(|| format!("reading {}", from.display()))? {
+fn copy_dir(from: &Path, to: &Path) -> crate::Result<()> {
+    std::fs::create_dir_all(to).doing("creating", to)?;
+    for e in std::fs::read_dir(from).doing("reading", from)? {
         let p = e?.path();
         let dest = to.join(p.file_name().unwrap_or_default());
         if p.is_dir() {
             copy_dir(&p, &dest)?;
         } else {
-            std::fs::copy(&p, &dest)
-                .with_context(|| format!("copying {} to {}", p.display(), dest.display()))?;
+            std::fs::copy(&p, &dest).io_context(&p, || {
+                format!("copying {} to {}", p.display(), dest.display())
+            })?;
         }
     }
     Ok(())

@@ -16,7 +16,7 @@ use std::collections::{BTreeMap, HashSet};
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, bail};
+use crate::error::{Context, IoContext, bail, bail_config};
 use serde::{Deserialize, Serialize};
 
 /// The format named in a pack's header line.
@@ -151,7 +151,7 @@ pub struct PackedRun {
 
 impl PackedRun {
     /// Reads a run folder: text files verbatim, `log.csv` compacted to `keep` columns.
-    pub fn from_folder(dir: &Path, keep: &[String]) -> anyhow::Result<PackedRun> {
+    pub fn from_folder(dir: &Path, keep: &[String]) -> crate::Result<PackedRun> {
         let name = dir
             .file_name()
             .with_context(|| format!("{} has no folder name", dir.display()))?
@@ -209,7 +209,7 @@ impl PackedRun {
     }
 
     /// A JSON file of the run, parsed; `None` when the run has none.
-    pub fn json<T: serde::de::DeserializeOwned>(&self, name: &str) -> anyhow::Result<Option<T>> {
+    pub fn json<T: serde::de::DeserializeOwned>(&self, name: &str) -> crate::Result<Option<T>> {
         self.file(name)
             .map(|t| {
                 serde_json::from_str(t)
@@ -225,17 +225,16 @@ impl PackedRun {
 
     /// Writes the run's folder: its text files and the compacted `log.csv` (pictures are
     /// [`crate::runs::redraw_pictures`]'s).
-    pub fn write_folder(&self, dir: &Path) -> anyhow::Result<()> {
+    pub fn write_folder(&self, dir: &Path) -> crate::Result<()> {
         for (rel, text) in &self.files {
             let path = dir.join(rel);
             if let Some(parent) = path.parent() {
-                std::fs::create_dir_all(parent)
-                    .with_context(|| format!("creating {}", parent.display()))?;
+                std::fs::create_dir_all(parent).doing("creating", parent)?;
             }
             ifslab::io::write_atomic(&path, text.as_bytes())?;
         }
         if let Some(log) = &self.log {
-            std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+            std::fs::create_dir_all(dir).doing("creating", dir)?;
             ifslab::io::write_atomic(&dir.join(LOG_FILE), log.to_csv().as_bytes())?;
         }
         Ok(())
@@ -251,8 +250,8 @@ fn is_text(rel: &str) -> bool {
 
 /// Files under `dir`, relative to `root` with `/` separators; dot files and folders (locks)
 /// left out.
-fn walk(root: &Path, dir: &Path, out: &mut Vec<String>) -> anyhow::Result<()> {
-    for e in std::fs::read_dir(dir).with_context(|| format!("reading {}", dir.display()))? {
+fn walk(root: &Path, dir: &Path, out: &mut Vec<String>) -> crate::Result<()> {
+    for e in std::fs::read_dir(dir).doing("reading", dir)? {
         let p = e?.path();
         if p.file_name()
             .is_some_and(|n| n.to_string_lossy().starts_with('.'))
@@ -310,18 +309,18 @@ pub struct Pack {
 
 impl Pack {
     /// Reads a pack file.
-    pub fn read(path: &Path) -> anyhow::Result<Pack> {
-        let file =
-            std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?;
+    pub fn read(path: &Path) -> crate::Result<Pack> {
+        let file = std::fs::File::open(path).doing("opening", path)?;
         let mut lines = BufReader::new(flate2::read::GzDecoder::new(file)).lines();
         let first = lines
             .next()
-            .with_context(|| format!("{} is empty", path.display()))?
-            .with_context(|| format!("reading {}", path.display()))?;
+            .config_context(path, || format!("{} is empty", path.display()))?
+            .doing("reading", path)?;
         let header: Header = serde_json::from_str(&first)
-            .with_context(|| format!("{} has no pack header", path.display()))?;
+            .config_context(path, || format!("{} has no pack header", path.display()))?;
         if header.format != PACK_FORMAT {
-            bail!(
+            bail_config!(
+                path,
                 "{} is a pack of format `{}`; this ifslab reads `{PACK_FORMAT}`",
                 path.display(),
                 header.format
@@ -329,14 +328,14 @@ impl Pack {
         }
         let mut runs = Vec::with_capacity(header.runs);
         for (k, line) in lines.enumerate() {
-            let line = line.with_context(|| format!("reading {}", path.display()))?;
-            runs.push(
-                serde_json::from_str(&line)
-                    .with_context(|| format!("{}: run {} is not valid", path.display(), k + 1))?,
-            );
+            let line = line.doing("reading", path)?;
+            runs.push(serde_json::from_str(&line).config_context(path, || {
+                format!("{}: run {} is not valid", path.display(), k + 1)
+            })?);
         }
         if runs.len() != header.runs {
-            bail!(
+            bail_config!(
+                path,
                 "{} holds {} runs where its header says {}: the file is cut short",
                 path.display(),
                 runs.len(),
@@ -347,7 +346,7 @@ impl Pack {
     }
 
     /// The pack beside a folder of runs (`X.jsonl.gz` for `X/`), empty when there is none.
-    pub fn beside(runs: &Path) -> anyhow::Result<Pack> {
+    pub fn beside(runs: &Path) -> crate::Result<Pack> {
         let path = pack_path(runs);
         if path.is_file() {
             Pack::read(&path)
@@ -357,7 +356,7 @@ impl Pack {
     }
 
     /// Writes the pack (runs in name order; the same runs give the same bytes).
-    pub fn write(&mut self, path: &Path) -> anyhow::Result<()> {
+    pub fn write(&mut self, path: &Path) -> crate::Result<()> {
         self.runs.sort_by(|a, b| a.name.cmp(&b.name));
         let header = Header {
             format: PACK_FORMAT.into(),
@@ -419,7 +418,7 @@ pub struct Packed {
 /// folders) into `runs.jsonl.gz` beside it, added to the runs already packed there (a folder
 /// replaces its packed copy). With `remove`, the packed folders are deleted once the pack
 /// has been read back and holds each of them as packed.
-pub fn pack(runs: &Path, keep: &[String], remove: bool) -> anyhow::Result<Packed> {
+pub fn pack(runs: &Path, keep: &[String], remove: bool) -> crate::Result<Packed> {
     let path = pack_path(runs);
     let mut pack = Pack::beside(runs)?;
     // Runs packed before checkpoints were left out lose theirs now.
@@ -427,7 +426,7 @@ pub fn pack(runs: &Path, keep: &[String], remove: bool) -> anyhow::Result<Packed
         r.leave_out_checkpoints();
     }
     let mut dirs: Vec<PathBuf> = std::fs::read_dir(runs)
-        .with_context(|| format!("reading {}", runs.display()))?
+        .doing("reading", runs)?
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.is_dir())
         .filter(|p| {
@@ -465,7 +464,7 @@ pub fn pack(runs: &Path, keep: &[String], remove: bool) -> anyhow::Result<Packed
                     d.display()
                 );
             }
-            std::fs::remove_dir_all(d).with_context(|| format!("removing {}", d.display()))?;
+            std::fs::remove_dir_all(d).doing("removing", d)?;
             out.removed += 1;
         }
     }
@@ -483,7 +482,7 @@ pub struct Unpacked {
 
 /// Writes the folders of packed runs back into `runs/` (those named in `only`, else all),
 /// leaving folders that exist alone.
-pub fn unpack(runs: &Path, only: &[String]) -> anyhow::Result<Unpacked> {
+pub fn unpack(runs: &Path, only: &[String]) -> crate::Result<Unpacked> {
     let path = pack_path(runs);
     if !path.is_file() {
         bail!(
@@ -511,11 +510,11 @@ pub fn unpack(runs: &Path, only: &[String]) -> anyhow::Result<Unpacked> {
         // Written aside and renamed, so a folder that exists is a whole run.
         let tmp = runs.join(format!(".{}.unpacking", r.name));
         if tmp.exists() {
-            std::fs::remove_dir_all(&tmp).with_context(|| format!("clearing {}", tmp.display()))?;
+            std::fs::remove_dir_all(&tmp).doing("clearing", &tmp)?;
         }
         r.write_folder(&tmp)?;
         std::fs::rename(&tmp, &dir)
-            .with_context(|| format!("moving {} into place", tmp.display()))?;
+            .io_context(&tmp, || format!("moving {} into place", tmp.display()))?;
         out.written += 1;
     }
     Ok(out)

@@ -11,7 +11,7 @@
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
-use anyhow::bail;
+use crate::error::bail;
 
 use super::collect::{Collected, RunState, fmt_num};
 
@@ -81,7 +81,7 @@ impl Collected {
         on: &[String],
         reference: &str,
         metric: &str,
-    ) -> anyhow::Result<Paired> {
+    ) -> crate::Result<Paired> {
         if on.is_empty() {
             bail!(
                 "no axis to pair runs on (every axis but {} has one value here; name one with \

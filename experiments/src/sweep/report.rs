@@ -7,7 +7,7 @@ use std::collections::BTreeSet;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, bail};
+use crate::error::{IoContext, bail};
 use image::{GrayImage, RgbImage};
 use plotters::prelude::*;
 
@@ -35,8 +35,8 @@ pub struct ReportOptions {
 
 /// Writes `results.csv`, `results.json`, `aggregate_*.csv`, the plots and `report.md` into
 /// `out`; returns the report's path.
-pub fn write_report(c: &Collected, out: &Path, opts: &ReportOptions) -> anyhow::Result<PathBuf> {
-    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+pub fn write_report(c: &Collected, out: &Path, opts: &ReportOptions) -> crate::Result<PathBuf> {
+    std::fs::create_dir_all(out).doing("creating", out)?;
     let write = |name: &str, bytes: &[u8]| ifslab::io::write_atomic(&out.join(name), bytes);
     write("results.csv", c.to_csv().as_bytes())?;
     write(
@@ -313,7 +313,7 @@ fn loss_curves(
     group: &[String],
     cats: &[String],
     out: &Path,
-) -> anyhow::Result<Option<String>> {
+) -> crate::Result<Option<String>> {
     let axis = group.join(" × ");
     let curves: Vec<Curve<'_>> = c
         .rows
@@ -367,7 +367,7 @@ fn loss_curves(
 
 /// A grid with one row per finished run (at most `max`): its target (or ground truth) and
 /// its result, captioned with its name. `None` when no run has pictures.
-fn picture_grid(c: &Collected, path: &Path, max: usize) -> anyhow::Result<Option<String>> {
+fn picture_grid(c: &Collected, path: &Path, max: usize) -> crate::Result<Option<String>> {
     const TILE: u32 = 128;
     const CAPTION: u32 = 220;
     const GAP: u32 = 4;

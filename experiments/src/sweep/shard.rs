@@ -3,7 +3,7 @@
 use std::fmt;
 use std::str::FromStr;
 
-use anyhow::{Context, bail};
+use crate::error::{Context, bail};
 
 /// Shard `index` of `count` (0-based, `--shard 2/8`): the runs whose position in the sweep
 /// is `index` modulo `count`. Round robin spreads the runs of each axis value over the
@@ -21,7 +21,7 @@ impl Shard {
     pub const ALL: Shard = Shard { index: 0, count: 1 };
 
     /// Shard `index` of `count`, checked.
-    pub fn new(index: usize, count: usize) -> anyhow::Result<Self> {
+    pub fn new(index: usize, count: usize) -> crate::Result<Self> {
         if count == 0 {
             bail!("a sweep splits into at least 1 shard, got 0");
         }
@@ -41,14 +41,15 @@ impl Shard {
 }
 
 impl FromStr for Shard {
-    type Err = anyhow::Error;
-    fn from_str(s: &str) -> anyhow::Result<Self> {
+    type Err = crate::Error;
+    fn from_str(s: &str) -> crate::Result<Self> {
         let (i, n) = s
             .split_once('/')
             .with_context(|| format!("`{s}` is not a shard: write INDEX/COUNT, e.g. 0/4"))?;
         let parse = |x: &str| {
             x.trim()
                 .parse::<usize>()
+                .map_err(|e| crate::Error::invalid(e.to_string()))
                 .with_context(|| format!("`{s}` is not a shard: `{x}` is not a whole number"))
         };
         Shard::new(parse(i)?, parse(n)?)

@@ -8,7 +8,8 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use anyhow::{Context, bail};
+use crate::Error;
+use crate::error::{Context, IoContext};
 
 use super::expand::Plan;
 
@@ -126,11 +127,11 @@ pub fn write_script(
     out: &Path,
     exe: &Path,
     extra: &[String],
-) -> anyhow::Result<PathBuf> {
-    let out = std::path::absolute(out).with_context(|| format!("resolving {}", out.display()))?;
-    let exe = std::path::absolute(exe).with_context(|| format!("resolving {}", exe.display()))?;
+) -> crate::Result<PathBuf> {
+    let out = std::path::absolute(out).doing("resolving", out)?;
+    let exe = std::path::absolute(exe).doing("resolving", exe)?;
     std::fs::create_dir_all(out.join(SLURM_DIR).join("logs"))
-        .with_context(|| format!("creating {}", out.join(SLURM_DIR).display()))?;
+        .doing("creating", &out.join(SLURM_DIR))?;
     super::local::write_plan(plan, &out)?;
     let path = out.join(SLURM_DIR).join(SCRIPT_FILE);
     ifslab::io::write_atomic(&path, script(plan, &out, &exe, extra).as_bytes())?;
@@ -138,23 +139,29 @@ pub fn write_script(
 }
 
 /// Submits a script with `sbatch` and returns the job id.
-pub fn submit(script: &Path) -> anyhow::Result<String> {
+pub fn submit(script: &Path) -> crate::Result<String> {
     let out = Command::new("sbatch")
         .arg("--parsable")
         .arg(script)
         .output()
         .context("running sbatch: is Slurm installed here (sbatch on the PATH)?")?;
     if !out.status.success() {
-        bail!(
-            "sbatch {} failed: {}",
-            script.display(),
-            String::from_utf8_lossy(&out.stderr).trim()
-        );
+        return Err(Error::Tool {
+            tool: "sbatch",
+            message: format!(
+                "sbatch {} failed: {}",
+                script.display(),
+                String::from_utf8_lossy(&out.stderr).trim()
+            ),
+        });
     }
     let text = String::from_utf8_lossy(&out.stdout);
     let id = text.trim().split(';').next().unwrap_or("").to_string();
     if id.is_empty() {
-        bail!("sbatch printed no job id");
+        return Err(Error::Tool {
+            tool: "sbatch",
+            message: "sbatch printed no job id".into(),
+        });
     }
     Ok(id)
 }

@@ -54,7 +54,7 @@ fn trimmed_mean(mut d: Vec<f64>, share: f64) -> f64 {
 
 /// How close `model`'s attractor (drawn by the chaos game from `seed`) lies to `data`;
 /// `None` for data of more than three dimensions (the nearest-point search is 3-D).
-pub fn closeness(model: &EmModel, data: &PointSet, seed: u64) -> anyhow::Result<Option<Closeness>> {
+pub fn closeness(model: &EmModel, data: &PointSet, seed: u64) -> crate::Result<Option<Closeness>> {
     let dim = data.dim();
     if dim > 3 {
         return Ok(None);

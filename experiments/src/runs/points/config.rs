@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, bail};
+use crate::error::{Context, IoContext, bail};
 use ifslab_strategies::problems::em::{
     ComponentUpdate, EmConfig, MStepConfig, PreselectBy, ReorientConfig, code_count,
 };
@@ -260,7 +260,7 @@ fn choices(paper: bool, k: usize, depth: usize) -> Choices {
 impl PointsConfig {
     /// A config from a parsed TOML table (without the `problem` key), relative file names
     /// read from `origin`'s folder: what `RunConfig` and a resumed run read a table with.
-    pub fn from_table(table: toml::Table, origin: &Path) -> anyhow::Result<Self> {
+    pub fn from_table(table: toml::Table, origin: &Path) -> crate::Result<Self> {
         let text = toml::to_string(&table).context("re-serialising the config")?;
         Ok(PointsConfig::from_toml(&text, origin)?
             .relative_to(origin.parent().unwrap_or(Path::new(""))))
@@ -268,11 +268,13 @@ impl PointsConfig {
 
     /// Parses TOML text (without the `problem` key) and validates it; `origin` names the
     /// text in errors.
-    pub fn from_toml(text: &str, origin: &Path) -> anyhow::Result<Self> {
-        let cfg: PointsConfig = toml::from_str(text)
-            .with_context(|| format!("{} is not a valid points config", origin.display()))?;
-        cfg.validate()
-            .with_context(|| format!("{} is not a valid points config", origin.display()))?;
+    pub fn from_toml(text: &str, origin: &Path) -> crate::Result<Self> {
+        let cfg: PointsConfig = toml::from_str(text).config_context(origin, || {
+            format!("{} is not a valid points config", origin.display())
+        })?;
+        cfg.validate().config_context(origin, || {
+            format!("{} is not a valid points config", origin.display())
+        })?;
         Ok(cfg)
     }
 
@@ -309,10 +311,9 @@ impl PointsConfig {
 
     /// Every file it names made absolute (against the working directory) and every choice
     /// written out: what a run folder's `config.toml` holds.
-    pub fn resolved(&self) -> anyhow::Result<Self> {
-        let abs =
-            |p: &Path| std::path::absolute(p).with_context(|| format!("resolving {}", p.display()));
-        let file_spec = |spec: &str| -> anyhow::Result<String> {
+    pub fn resolved(&self) -> crate::Result<Self> {
+        let abs = |p: &Path| std::path::absolute(p).doing("resolving", p);
+        let file_spec = |spec: &str| -> crate::Result<String> {
             let p = Path::new(spec);
             Ok(if p.is_file() {
                 abs(p)?.to_string_lossy().into_owned()
@@ -391,7 +392,7 @@ impl PointsConfig {
     }
 
     /// Checks every field before anything runs; errors name the field and say what to change.
-    pub fn validate(&self) -> anyhow::Result<()> {
+    pub fn validate(&self) -> crate::Result<()> {
         if self.data.is_empty() {
             bail!(
                 "`data` is missing: name a point cloud (.csv, .txt or .npy) or `ifs:NAME` to sample one from a code"
@@ -484,7 +485,7 @@ impl PointsConfig {
 
     /// TOML text of the resolved config, `problem = "points"` first: a run folder's
     /// `config.toml`, which `ifslab run` reads back as the same run.
-    pub fn to_toml(&self) -> anyhow::Result<String> {
+    pub fn to_toml(&self) -> crate::Result<String> {
         Ok(format!(
             "{PROBLEM_KEY} = \"points\"\n{}",
             toml::to_string_pretty(&self.resolved()?)?

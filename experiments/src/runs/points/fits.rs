@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::Context;
+use crate::error::{Context, IoContext};
 use ifslab::model::IfsCode;
 use ifslab_strategies::problems::em::{EmConfig, EmFit, EmModel, IterationRecord};
 use serde::{Deserialize, Serialize};
@@ -53,7 +53,7 @@ pub fn save(
     em: &EmConfig,
     fit: &Result<EmFit, String>,
     seconds: f64,
-) -> anyhow::Result<()> {
+) -> crate::Result<()> {
     let outcome = match fit {
         Ok(f) => Outcome::Fitted {
             code: serde_json::from_str(&f.model.to_code(None)?.to_json())?,
@@ -78,7 +78,7 @@ pub fn save(
 /// A checkpoint that cannot be read back (for instance a non-finite log-likelihood, which
 /// JSON cannot hold) is `Ok(None)`: the fit runs again. One made with another config is
 /// an error: the folder holds a different run.
-pub fn load(dir: &Path, label: &str, em: &EmConfig) -> anyhow::Result<Option<Finished>> {
+pub fn load(dir: &Path, label: &str, em: &EmConfig) -> crate::Result<Option<Finished>> {
     let p = path(dir, label);
     let Ok(text) = std::fs::read_to_string(&p) else {
         return Ok(None);
@@ -86,7 +86,7 @@ pub fn load(dir: &Path, label: &str, em: &EmConfig) -> anyhow::Result<Option<Fin
     let Ok(rec) = serde_json::from_str::<FitRecord>(&text) else {
         return Ok(None);
     };
-    anyhow::ensure!(
+    crate::error::ensure!(
         rec.em == *em,
         "{} was made with another EM config than this run's; resume the run with the config \
          in its folder (config.toml), or start it in a new folder",
@@ -115,10 +115,10 @@ pub fn load(dir: &Path, label: &str, em: &EmConfig) -> anyhow::Result<Option<Fin
 }
 
 /// Removes the checkpoints of a completed run.
-pub fn clear(dir: &Path) -> anyhow::Result<()> {
+pub fn clear(dir: &Path) -> crate::Result<()> {
     let d = dir.join(FITS_DIR);
     if d.exists() {
-        std::fs::remove_dir_all(&d).with_context(|| format!("removing {}", d.display()))?;
+        std::fs::remove_dir_all(&d).doing("removing", &d)?;
     }
     Ok(())
 }

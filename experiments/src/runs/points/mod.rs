@@ -32,7 +32,7 @@ pub mod truth;
 use std::path::Path;
 use std::time::Instant;
 
-use anyhow::{Context, bail};
+use crate::error::{Context, IoContext, bail};
 use ifslab::chaos::{ChaosGame, generate_nd, mix_seed};
 use ifslab_strategies::problems::em::{EmFit, Event, PointSet, fit};
 use serde::{Deserialize, Serialize};
@@ -64,7 +64,7 @@ impl Data {
 }
 
 /// Loads the config's point cloud or samples it from a code, and splits it.
-pub fn load_data(cfg: &PointsConfig) -> anyhow::Result<Data> {
+pub fn load_data(cfg: &PointsConfig) -> crate::Result<Data> {
     let (all, source) = if let Some(spec) = cfg.data.strip_prefix("ifs:") {
         let code = resolve_code(spec).with_context(|| format!("`data` {}", cfg.data))?;
         let probs = code.evaluation_probabilities()?;
@@ -240,14 +240,14 @@ pub fn run(
     dir: &Path,
     resume: bool,
     progress: Box<dyn Progress>,
-) -> anyhow::Result<PointsSummary> {
+) -> crate::Result<PointsSummary> {
     let start = Instant::now();
     cfg.validate()?;
     let _lock = crate::runs::lock::lock_run_dir(dir)?;
     let resolved = cfg.resolved()?;
     let config_path = dir.join(CONFIG_FILE);
     if resume {
-        anyhow::ensure!(
+        crate::error::ensure!(
             config_path.is_file(),
             "{} holds no points run to resume (no {CONFIG_FILE})",
             dir.display()
@@ -269,7 +269,7 @@ pub fn run(
             output: None,
             ..resolved.clone()
         };
-        anyhow::ensure!(
+        crate::error::ensure!(
             same,
             "{} describes another run than this config; resume with that config, or start \
              this one in a new folder",
@@ -288,7 +288,7 @@ pub fn run(
         cfg.em_config(cfg.seed, cfg.pool)
             .check_work(data.train.len(), cfg.runs())?;
     }
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    std::fs::create_dir_all(dir).doing("creating", dir)?;
     if !resume {
         ifslab::io::write_atomic(&config_path, resolved.to_toml()?.as_bytes())?;
     }
@@ -336,7 +336,7 @@ fn fit_runs(
     truth: Option<&Truth>,
     started: Instant,
     progress: &dyn Progress,
-) -> anyhow::Result<PointsSummary> {
+) -> crate::Result<PointsSummary> {
     let (train, heldout) = (&data.train, data.heldout());
     let mut runs = Vec::new();
     // The kept run: its held-out score, its rank under `cfg.keep()` (lower is better), its
@@ -354,7 +354,7 @@ fn fit_runs(
         let (result, secs) = match fits::load(dir, &label, &em)? {
             Some((fit, secs)) => {
                 resumed += 1;
-                (fit.map_err(anyhow::Error::msg)?, secs)
+                (fit.map_err(crate::Error::InvalidInput)?, secs)
             }
             None => {
                 let t0 = Instant::now();

@@ -36,7 +36,7 @@ pub(super) fn write_fit(
     runs: Vec<serde_json::Value>,
     started: Instant,
     progress: &dyn Progress,
-) -> anyhow::Result<Written> {
+) -> crate::Result<Written> {
     let (train, heldout) = (&data.train, data.heldout());
     let model = &result.model;
     let name = format!("em-k{}-d{}", cfg.k, cfg.depth);
@@ -145,13 +145,13 @@ fn gmm_counts(cfg: &PointsConfig, h: usize, em_params: usize) -> Vec<(Covariance
 }
 
 /// Pretty JSON, written atomically.
-pub(super) fn write_json(path: &Path, v: &serde_json::Value) -> anyhow::Result<()> {
+pub(super) fn write_json(path: &Path, v: &serde_json::Value) -> crate::Result<()> {
     let text = serde_json::to_string_pretty(v)?;
     ifslab::io::write_atomic(path, text.as_bytes())?;
     Ok(())
 }
 
-fn write_history(path: &Path, f: &EmFit) -> anyhow::Result<()> {
+fn write_history(path: &Path, f: &EmFit) -> crate::Result<()> {
     let mut s = String::from(
         "iteration,batch_log_likelihood,heldout_log_likelihood,deepest_weight,mean_depth,accepted,repairs\n",
     );
@@ -172,7 +172,7 @@ fn write_history(path: &Path, f: &EmFit) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn plot_history(path: &Path, f: &EmFit, name: &str) -> anyhow::Result<()> {
+fn plot_history(path: &Path, f: &EmFit, name: &str) -> crate::Result<()> {
     let batch: Vec<(f64, f64)> = f
         .history
         .iter()
@@ -207,12 +207,7 @@ fn plot_history(path: &Path, f: &EmFit, name: &str) -> anyhow::Result<()> {
 }
 
 /// 2-D: the points as they are; 3-D: projected on the data's two principal axes.
-fn plot_scatter(
-    path: &Path,
-    data: &PointSet,
-    samples: &PointSet,
-    name: &str,
-) -> anyhow::Result<()> {
+fn plot_scatter(path: &Path, data: &PointSet, samples: &PointSet, name: &str) -> crate::Result<()> {
     let h = data.dim();
     if !(h == 2 || h == 3) {
         return Ok(());
@@ -251,7 +246,7 @@ fn plot_scatter(
 }
 
 /// The 512² density render of a 2-D fit, or why there is none.
-fn render_fit(cfg: &PointsConfig, dir: &Path, code: &IfsCode) -> anyhow::Result<Option<String>> {
+fn render_fit(cfg: &PointsConfig, dir: &Path, code: &IfsCode) -> crate::Result<Option<String>> {
     let maps = code.affine2()?;
     let probs = code.evaluation_probabilities()?;
     let rc = RenderConfig {

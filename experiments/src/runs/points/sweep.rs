@@ -5,7 +5,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use anyhow::Context;
+use crate::error::Context;
 use ifslab::chaos::mix_seed;
 use ifslab_strategies::problems::em::{EmConfig, fit};
 use rayon::prelude::*;
@@ -31,7 +31,7 @@ pub(super) fn sweep(
     truth: Option<&Truth>,
     started: Instant,
     progress: &dyn Progress,
-) -> anyhow::Result<PointsSummary> {
+) -> crate::Result<PointsSummary> {
     let (train, heldout) = (&data.train, data.heldout());
     let mut jobs: Vec<(String, EmConfig)> = Vec::new();
     for &p in &cfg.sweep_pool {
@@ -43,7 +43,7 @@ pub(super) fn sweep(
     let mut done: Vec<Option<Finished>> = jobs
         .iter()
         .map(|(l, em)| fits::load(dir, l, em))
-        .collect::<anyhow::Result<_>>()?;
+        .collect::<crate::Result<_>>()?;
     let resumed = done.iter().filter(|d| d.is_some()).count();
     if resumed > 0 {
         progress.message(&format!(
@@ -58,7 +58,7 @@ pub(super) fn sweep(
     let missing: Vec<usize> = (0..jobs.len()).filter(|&i| done[i].is_none()).collect();
     let fresh: Vec<(usize, Finished)> = missing
         .par_iter()
-        .map(|&i| -> anyhow::Result<(usize, Finished)> {
+        .map(|&i| -> crate::Result<(usize, Finished)> {
             let (l, em) = &jobs[i];
             let t = Instant::now();
             let r = fit(train, heldout, em, &mut |_| {}).map_err(|e| e.to_string());
@@ -67,7 +67,7 @@ pub(super) fn sweep(
             progress.inc(1);
             Ok((i, (r, secs)))
         })
-        .collect::<anyhow::Result<_>>()?;
+        .collect::<crate::Result<_>>()?;
     progress.finish();
     for (i, f) in fresh {
         done[i] = Some(f);

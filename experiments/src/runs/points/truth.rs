@@ -2,7 +2,7 @@
 //! attractors' coverage and the largest difference of their sorted scales, since a run can
 //! meet the convergence criterion with a wrong code.
 
-use anyhow::{Context, bail};
+use crate::error::{Context, bail};
 use ifslab::chaos::{ChaosGame, generate_nd};
 use ifslab::model::IfsCode;
 use ifslab::render::{RenderConfig, RenderMode, View, render};
@@ -58,7 +58,7 @@ impl Against {
 }
 
 /// Coverage mask of a 2-D code in `view`, and the window it was drawn in.
-fn coverage(code: &IfsCode, view: View, seed: u64) -> anyhow::Result<(Vec<bool>, View)> {
+fn coverage(code: &IfsCode, view: View, seed: u64) -> crate::Result<(Vec<bool>, View)> {
     let maps = code.affine2()?;
     let probs = code.evaluation_probabilities()?;
     let cfg = RenderConfig {
@@ -80,7 +80,7 @@ fn coverage(code: &IfsCode, view: View, seed: u64) -> anyhow::Result<(Vec<bool>,
 /// About `n` points (a whole number of trajectories of 1000) of a code's attractor (any
 /// dimension, flat), by the chaos game from `seed` with the evaluation renders'
 /// probabilities.
-pub(crate) fn attractor_points(code: &IfsCode, n: usize, seed: u64) -> anyhow::Result<Vec<f64>> {
+pub(crate) fn attractor_points(code: &IfsCode, n: usize, seed: u64) -> crate::Result<Vec<f64>> {
     let probs = code.evaluation_probabilities()?;
     let per = 1000usize;
     let game = ChaosGame {
@@ -114,7 +114,7 @@ fn voxels(points: &[f64], lo: &[f64], side: f64) -> Vec<bool> {
 impl Truth {
     /// The truth named by `spec` (a code file or a built-in name) for data of dimension
     /// `dim`: a 2-D or 3-D code of similitudes (reflections allowed).
-    pub fn load(spec: &str, dim: usize) -> anyhow::Result<Truth> {
+    pub fn load(spec: &str, dim: usize) -> crate::Result<Truth> {
         let code = resolve_code(spec).with_context(|| format!("`truth` {spec}"))?;
         if code.dim() != dim || !(2..=3).contains(&dim) {
             bail!(
@@ -157,7 +157,7 @@ impl Truth {
     }
 
     /// How a fitted model compares with the truth.
-    pub fn compare(&self, model: &EmModel) -> anyhow::Result<Against> {
+    pub fn compare(&self, model: &EmModel) -> crate::Result<Against> {
         let code = model.to_code(None)?;
         let (agreement, iou) = match &self.cover {
             Cover::Pixels {

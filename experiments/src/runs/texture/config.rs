@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, bail};
+use crate::error::{Context, IoContext, bail};
 use ifslab_strategies::problems::fractal_coding::{
     CoordStorage, DistanceCentre, EncoderConfig, Filter, Matching, Preset, Reduction, RefineConfig,
     SearchGrid, levels_for_factor,
@@ -145,7 +145,7 @@ pub struct Settings {
 
 impl Settings {
     /// Refuses, before encoding, a coordinate layout that cannot hold the grid's codes.
-    pub fn check_storage(&self) -> anyhow::Result<()> {
+    pub fn check_storage(&self) -> crate::Result<()> {
         let (storage, grid) = (self.coord_storage, self.encoder.grid);
         if storage == CoordStorage::SignMagnitude {
             if self.encoder.window > 255 {
@@ -175,15 +175,15 @@ impl Settings {
 impl TextureConfig {
     /// Parses TOML text (without the `problem` key) and validates it; `origin` names the
     /// text in errors.
-    pub fn from_toml(text: &str, origin: &Path) -> anyhow::Result<Self> {
+    pub fn from_toml(text: &str, origin: &Path) -> crate::Result<Self> {
         let what = || format!("{} is not a valid texture config", origin.display());
-        let cfg: TextureConfig = toml::from_str(text).with_context(what)?;
-        cfg.validate().with_context(what)?;
+        let cfg: TextureConfig = toml::from_str(text).config_context(origin, what)?;
+        cfg.validate().config_context(origin, what)?;
         Ok(cfg)
     }
 
     /// Checks every field before anything runs; errors name the field.
-    pub fn validate(&self) -> anyhow::Result<()> {
+    pub fn validate(&self) -> crate::Result<()> {
         if self.source.as_os_str().is_empty() {
             bail!("`source` is missing: name the texture to upsample (PNG or JPEG)");
         }
@@ -209,9 +209,8 @@ impl TextureConfig {
 
     /// Every file named absolutely and every encoder choice written out: what a run
     /// folder's `config.toml` holds.
-    pub fn resolved(&self) -> anyhow::Result<Self> {
-        let abs =
-            |p: &Path| std::path::absolute(p).with_context(|| format!("resolving {}", p.display()));
+    pub fn resolved(&self) -> crate::Result<Self> {
+        let abs = |p: &Path| std::path::absolute(p).doing("resolving", p);
         let s = self.settings();
         Ok(TextureConfig {
             source: abs(&self.source)?,

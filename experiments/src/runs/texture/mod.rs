@@ -21,7 +21,7 @@ pub mod repro;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{Context, bail};
+use crate::error::{Context, IoContext, bail};
 use ifslab_strategies::problems::fractal_coding::{
     CoordStorage, Filter, FractalCode, Texture, decode, encode, levels_for_factor, load_dir, psnr,
     refine, save_dir, upsample,
@@ -34,7 +34,7 @@ use crate::runs::table::PROBLEM_KEY;
 pub use config::{CandidateCap, Settings, TextureConfig};
 
 /// Loads a source texture with a message that says what is accepted.
-pub fn load_texture(path: &Path, grey: bool) -> anyhow::Result<Texture> {
+pub fn load_texture(path: &Path, grey: bool) -> crate::Result<Texture> {
     if !path.exists() {
         bail!("{} does not exist", path.display());
     }
@@ -64,7 +64,7 @@ pub fn encode_with(
     tex: &Texture,
     settings: &Settings,
     progress: &dyn Progress,
-) -> anyhow::Result<Encoded> {
+) -> crate::Result<Encoded> {
     let (enc_cfg, ref_cfg) = (&settings.encoder, &settings.refine);
     let mut enc = encode(tex, enc_cfg)?;
     progress.message(&format!(
@@ -123,7 +123,7 @@ fn pack(
     enc: &Encoded,
     storage: CoordStorage,
     dir: &Path,
-) -> anyhow::Result<PackReport> {
+) -> crate::Result<PackReport> {
     let rec = decode(&enc.code, 1)?;
     let err = save_dir(&enc.code, dir, storage, enc.info.clone())
         .with_context(|| format!("writing the code folder {}", dir.display()))?;
@@ -142,7 +142,7 @@ pub fn encode_to_dir(
     cfg: &TextureConfig,
     out: &Path,
     progress: &dyn Progress,
-) -> anyhow::Result<PackReport> {
+) -> crate::Result<PackReport> {
     let tex = load_texture(&cfg.source, cfg.grey)?;
     let settings = cfg.settings();
     settings.check_storage()?;
@@ -166,7 +166,7 @@ fn decode_to_file(
     factor: u32,
     out: &Path,
     progress: &dyn Progress,
-) -> anyhow::Result<(Texture, f64)> {
+) -> crate::Result<(Texture, f64)> {
     let t0 = Instant::now();
     let up = decode(code, factor)?;
     let secs = t0.elapsed().as_secs_f64();
@@ -189,7 +189,7 @@ pub fn decode_dir_to_file(
     factor: u32,
     out: &Path,
     progress: &dyn Progress,
-) -> anyhow::Result<()> {
+) -> crate::Result<()> {
     levels_for_factor(factor)?;
     let (code, _) = load_dir(code_dir)?;
     decode_to_file(&code, factor, out, progress)?;
@@ -203,7 +203,7 @@ fn filter_to_file(
     filter: Filter,
     out: &Path,
     progress: &dyn Progress,
-) -> anyhow::Result<(Texture, f64)> {
+) -> crate::Result<(Texture, f64)> {
     let t0 = Instant::now();
     let up = upsample(tex, factor, filter)?;
     let secs = t0.elapsed().as_secs_f64();
@@ -225,7 +225,7 @@ pub fn upsample_to_file(
     cfg: &TextureConfig,
     out: &Path,
     progress: &dyn Progress,
-) -> anyhow::Result<()> {
+) -> crate::Result<()> {
     levels_for_factor(cfg.factor)?;
     let tex = load_texture(&cfg.source, cfg.grey)?;
     if let Some(f) = cfg.filter {
@@ -302,12 +302,12 @@ pub fn run(
     dir: &Path,
     resume: bool,
     progress: Box<dyn Progress>,
-) -> anyhow::Result<TextureSummary> {
+) -> crate::Result<TextureSummary> {
     let start = Instant::now();
     cfg.validate()?;
     let _lock = crate::runs::lock::lock_run_dir(dir)?;
     let tex = load_texture(&cfg.source, cfg.grey)?;
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    std::fs::create_dir_all(dir).doing("creating", dir)?;
     if resume {
         progress.message("a texture run has no checkpoints; running it again from the start");
     }

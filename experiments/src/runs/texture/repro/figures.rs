@@ -8,7 +8,7 @@ use ifslab_strategies::problems::fractal_coding::{
 };
 
 /// A row of panels of equal height with 4-texel white gaps (grey if every panel is grey).
-pub(super) fn montage(panels: &[Texture]) -> anyhow::Result<Texture> {
+pub(super) fn montage(panels: &[Texture]) -> crate::Result<Texture> {
     let gap = 4;
     let ch = panels.iter().map(|p| p.channels()).max().unwrap_or(1);
     let h = panels.iter().map(|p| p.height()).max().unwrap_or(1);
@@ -44,7 +44,7 @@ pub(super) fn figures(
     src: &Texture,
     codes: &[(Preset, bool, FractalCode)],
     snapshots: &[(Preset, Vec<(usize, FractalCode)>)],
-) -> anyhow::Result<()> {
+) -> crate::Result<()> {
     let (x0, y0, side) = region(src);
     let crop8 = |t: &Texture| t.crop(8 * x0, 8 * y0, 8 * side, 8 * side);
     let code = |p: Preset, refined: bool| {

@@ -19,7 +19,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::Context;
+use crate::error::{Context, IoContext};
 use ifslab_strategies::problems::fractal_coding::{
     CoordStorage, EncodeStats, EncoderConfig, Filter, FractalCode, Preset, RefineConfig, Texture,
     decode, encode, laplacian_variance, load_dir, psnr, refine, save_dir, upsample,
@@ -169,10 +169,10 @@ pub const PARTIAL_DIR: &str = "partial";
 /// packed code of each preset for brick. Textures are the unit of work: each is saved under
 /// `partial/` when done, and with `resume` the saved ones are not done again (their timings
 /// are the ones measured then). Returns the Markdown of `tables.md`.
-pub fn run(cfg: &ReproConfig, resume: bool, progress: &dyn Progress) -> anyhow::Result<String> {
+pub fn run(cfg: &ReproConfig, resume: bool, progress: &dyn Progress) -> crate::Result<String> {
     let t_all = Instant::now();
     let a = cfg;
-    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    std::fs::create_dir_all(&a.out).doing("creating", &a.out)?;
     let names: Vec<String> = a.textures.clone().unwrap_or_else(|| {
         ["brick", "grass", "gravel", "wood"]
             .iter()
@@ -184,8 +184,7 @@ pub fn run(cfg: &ReproConfig, resume: bool, progress: &dyn Progress) -> anyhow::
     let settings = (a.tables_only, a.skip_ablation, a.timing_reps);
     let partial = a.out.join(PARTIAL_DIR);
     if !resume && partial.exists() {
-        std::fs::remove_dir_all(&partial)
-            .with_context(|| format!("removing {}", partial.display()))?;
+        std::fs::remove_dir_all(&partial).doing("removing", &partial)?;
     }
 
     let steps = names.len() * if a.skip_ablation { 1 } else { 2 };
@@ -324,7 +323,7 @@ pub fn run(cfg: &ReproConfig, resume: bool, progress: &dyn Progress) -> anyhow::
         }
     );
     write(&a.out.join("tables.md"), md.as_bytes())?;
-    std::fs::remove_dir_all(&partial).with_context(|| format!("removing {}", partial.display()))?;
+    std::fs::remove_dir_all(&partial).doing("removing", &partial)?;
     Ok(md)
 }
 
@@ -336,7 +335,7 @@ fn one_texture(
     presets: &[Preset],
     variants: &[Variant],
     progress: &dyn Progress,
-) -> anyhow::Result<TextureDone> {
+) -> crate::Result<TextureDone> {
     let path = a.data.join(format!("{name}.png"));
     let src = Texture::load(&path, false).with_context(|| format!("loading {}", path.display()))?;
     progress.message(&format!(
@@ -406,7 +405,7 @@ fn one_texture(
                 json!({"texture": name, "preset": preset, "encoder": cfg, "passes": passes}),
             )?;
             let (packed, _) = load_dir(&dir)?;
-            anyhow::ensure!(
+            crate::error::ensure!(
                 packed.coords() == code.coords(),
                 "the packed coordinates of {label} did not round-trip"
             );
@@ -535,7 +534,7 @@ fn holdout_psnr(
     quarter: &Texture,
     cfg: &EncoderConfig,
     passes: usize,
-) -> anyhow::Result<(f64, f64)> {
+) -> crate::Result<(f64, f64)> {
     let mut out = [0.0; 2];
     for (i, (s, factor)) in [(half, 2u32), (quarter, 4)].into_iter().enumerate() {
         let e = encode(s, cfg)?;
@@ -561,7 +560,7 @@ fn collage_sse(src: &Texture, code: &FractalCode) -> f64 {
     sse / (code.width() * code.height()) as f64
 }
 
-fn write(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+fn write(path: &Path, bytes: &[u8]) -> crate::Result<()> {
     ifslab::io::write_atomic(path, bytes).with_context(|| format!("writing {}", path.display()))
 }
 

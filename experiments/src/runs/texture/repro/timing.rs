@@ -12,8 +12,8 @@ use super::TimingRow;
 /// Median seconds of `reps` runs of `f`.
 pub(super) fn median_secs(
     reps: usize,
-    mut f: impl FnMut() -> anyhow::Result<()>,
-) -> anyhow::Result<f64> {
+    mut f: impl FnMut() -> crate::Result<()>,
+) -> crate::Result<f64> {
     f()?; // warm-up (caches, page faults of the output buffer)
     let mut t = Vec::with_capacity(reps);
     for _ in 0..reps.max(1) {
@@ -30,7 +30,7 @@ pub(super) fn timing(
     src: &Texture,
     code: &FractalCode,
     reps: usize,
-) -> anyhow::Result<Vec<TimingRow>> {
+) -> crate::Result<Vec<TimingRow>> {
     let factor = 8;
     let (_, w, h) = output_size(code, factor)?;
     let mut rows = Vec::new();
@@ -39,7 +39,7 @@ pub(super) fn timing(
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()?;
-        let (ours, bil) = pool.install(|| -> anyhow::Result<(f64, f64)> {
+        let (ours, bil) = pool.install(|| -> crate::Result<(f64, f64)> {
             let mut buf = vec![0.0f32; w * h * src.channels()];
             let ours = median_secs(reps, || Ok(decode_into(code, factor, &mut buf)?))?;
             let bil = median_secs(reps, || Ok(bilinear_into(src, factor, &mut buf)?))?;
