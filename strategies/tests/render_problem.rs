@@ -7,7 +7,7 @@
 
 use std::borrow::Cow;
 
-use ifslab::render::{Draws, Planes, Renderer};
+use ifslab::render::Renderer;
 use ifslab_strategies::driver::plan::execute;
 use ifslab_strategies::driver::{CsvLog, Differentiable, JsonCheckpoint, RunSpec};
 use ifslab_strategies::optim::annealing::Anneal;
@@ -16,59 +16,12 @@ use ifslab_strategies::problems::render_problem::{
 };
 use ifslab_strategies::registry;
 
-/// Unit-amplitude Gaussian blobs centred at `(x, y)` pixel pairs, summed on a `size²` image.
-#[derive(Clone)]
-struct Blobs {
-    size: usize,
-    /// Width in pixels.
-    s: f64,
-}
+#[path = "../../tests/common/blobs.rs"]
+mod blobs;
+use blobs::Blobs;
 
-impl Renderer for Blobs {
-    type Scene = [f64];
-    type Pixel = f64;
-    type Sampling = ();
-    type Tape = ();
-    const DRAWS: Draws = Draws::Never;
-
-    fn planes(&self) -> Planes {
-        Planes {
-            channels: 1,
-            height: self.size,
-            width: self.size,
-        }
-    }
-
-    fn sampling(&self, _: &[f64], _: u64, _: u64) {}
-
-    fn forward(&self, centres: &[f64], _: &()) -> ifslab::Result<(Vec<f64>, ())> {
-        let n = self.size;
-        let mut image = vec![0.0; n * n];
-        for c in centres.chunks_exact(2) {
-            for (q, v) in image.iter_mut().enumerate() {
-                let (dx, dy) = ((q % n) as f64 - c[0], (q / n) as f64 - c[1]);
-                *v += (-(dx * dx + dy * dy) / (2.0 * self.s * self.s)).exp();
-            }
-        }
-        Ok((image, ()))
-    }
-
-    fn backward(&self, centres: &[f64], _: &(), _: &(), grad: &[f64]) -> ifslab::Result<Vec<f64>> {
-        let (n, s2) = (self.size, self.s * self.s);
-        let mut out = vec![0.0; centres.len()];
-        for (c, o) in centres.chunks_exact(2).zip(out.chunks_exact_mut(2)) {
-            for (q, lam) in grad.iter().enumerate() {
-                let (dx, dy) = ((q % n) as f64 - c[0], (q / n) as f64 - c[1]);
-                let g = (-(dx * dx + dy * dy) / (2.0 * s2)).exp();
-                o[0] += lam * g * dx / s2;
-                o[1] += lam * g * dy / s2;
-            }
-        }
-        Ok(out)
-    }
-}
-
-/// θ = blob centres in units of the image side (centre of the image at 0), the blobs wide
+/// θ = blob centres in units of the image side (centre of the image at 0; the scene is
+/// `(x, y, 1)` per blob in pixels, the amplitude held at 1), the blobs wide
 /// at the start of a run and narrow at its end; a prior `w·Σ|c − mean|²` (pixels²) on the
 /// spread of the centres.
 struct BlobModel {
@@ -92,7 +45,10 @@ impl SceneModel for BlobModel {
 
     fn scene(&self, theta: &[f64], _: Moment) -> ifslab_strategies::Result<Vec<f64>> {
         let half = self.renderer.size as f64 / 2.0;
-        Ok(theta.iter().map(|t| half + t * 2.0 * half).collect())
+        Ok(theta
+            .chunks_exact(2)
+            .flat_map(|c| [half + c[0] * 2.0 * half, half + c[1] * 2.0 * half, 1.0])
+            .collect())
     }
 
     fn renderer(&self, _: &Vec<f64>, at: Moment) -> ifslab_strategies::Result<Cow<'_, Blobs>> {
@@ -116,23 +72,23 @@ impl SceneModel for BlobModel {
         terms: &mut Terms,
         grad: Option<&mut [f64]>,
     ) -> ifslab_strategies::Result<()> {
-        let k = (centres.len() / 2) as f64;
-        let mean = [0, 1].map(|a| centres.iter().skip(a).step_by(2).sum::<f64>() / k);
-        let v: f64 = centres
-            .iter()
-            .enumerate()
-            .map(|(i, c)| (c - mean[i % 2]).powi(2))
-            .sum();
+        let k = (centres.len() / 3) as f64;
+        let mean = [0, 1].map(|a| centres.iter().skip(a).step_by(3).sum::<f64>() / k);
+        let mut v = 0.0;
+        for c in centres.chunks_exact(3) {
+            v += (c[0] - mean[0]).powi(2) + (c[1] - mean[1]).powi(2);
+        }
         terms.set("spread", v, self.spread);
         if let Some(g) = grad {
-            for (i, (gi, c)) in g.iter_mut().zip(centres).enumerate() {
-                *gi += self.spread * 2.0 * (c - mean[i % 2]);
+            for (g, c) in g.chunks_exact_mut(3).zip(centres.chunks_exact(3)) {
+                g[0] += self.spread * 2.0 * (c[0] - mean[0]);
+                g[1] += self.spread * 2.0 * (c[1] - mean[1]);
             }
         }
         Ok(())
     }
 
-    /// Centres in pixels → θ in units of the side.
+    /// Centres in pixels → θ in units of the side (the amplitudes' entries dropped).
     fn pull_back(
         &self,
         _: &[f64],
@@ -140,7 +96,10 @@ impl SceneModel for BlobModel {
         grad: Vec<f64>,
     ) -> ifslab_strategies::Result<Vec<f64>> {
         let side = self.renderer.size as f64;
-        Ok(grad.into_iter().map(|g| g * side).collect())
+        Ok(grad
+            .chunks_exact(3)
+            .flat_map(|g| [g[0] * side, g[1] * side])
+            .collect())
     }
 }
 
