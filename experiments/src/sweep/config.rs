@@ -163,12 +163,9 @@ pub struct SlurmConfig {
 impl SweepConfig {
     /// Parses a sweep file's text; `origin` names it in errors.
     pub fn from_toml(text: &str, origin: &Path) -> crate::Result<Self> {
-        let cfg: SweepConfig = toml::from_str(text).config_context(origin, || {
-            format!("{} is not a valid sweep file", origin.display())
-        })?;
-        cfg.validate().config_context(origin, || {
-            format!("{} is not a valid sweep file", origin.display())
-        })?;
+        let invalid = || format!("{} is not a valid sweep file", origin.display());
+        let cfg: SweepConfig = toml::from_str(text).config_context(origin, invalid)?;
+        cfg.validate().config_context(origin, invalid)?;
         Ok(cfg)
     }
 

@@ -287,15 +287,6 @@ where
             planes: None,
         })
     }
-
-    /// The rendered planes of θ at `at` (no loss).
-    pub fn planes(&self, theta: &[f64], at: Moment) -> Result<Vec<PixelOf<M>>> {
-        let scene = self.model.scene(theta, at)?;
-        let renderer = self.model.renderer(&scene, at)?;
-        let drawn: &<M::Renderer as Renderer>::Scene = scene.borrow();
-        let sampling = self.sampler.sampling(&renderer, drawn, self.model.draw(at));
-        Ok(renderer.forward(drawn, &sampling)?.0)
-    }
 }
 
 impl<M, L> Differentiable for RenderProblem<M, L>

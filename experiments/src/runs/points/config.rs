@@ -269,12 +269,9 @@ impl PointsConfig {
     /// Parses TOML text (without the `problem` key) and validates it; `origin` names the
     /// text in errors.
     pub fn from_toml(text: &str, origin: &Path) -> crate::Result<Self> {
-        let cfg: PointsConfig = toml::from_str(text).config_context(origin, || {
-            format!("{} is not a valid points config", origin.display())
-        })?;
-        cfg.validate().config_context(origin, || {
-            format!("{} is not a valid points config", origin.display())
-        })?;
+        let invalid = || format!("{} is not a valid points config", origin.display());
+        let cfg: PointsConfig = toml::from_str(text).config_context(origin, invalid)?;
+        cfg.validate().config_context(origin, invalid)?;
         Ok(cfg)
     }
 

@@ -271,8 +271,8 @@ impl<T: SplatReal> Image3dProblem<T> {
         }
         // Checks the config and the cameras as the splat will.
         MultiViewSplat::<SvdMap3, T>::new(render.clone(), views.cameras.clone())?;
-        let (width, height) = (views.cameras[0].width(), views.cameras[0].height());
-        let pixels = views.size().0 * views.size().1;
+        let (width, height) = views.size();
+        let pixels = width * height;
         let target_ink = views
             .planes
             .chunks_exact(pixels)

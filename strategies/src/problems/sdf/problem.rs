@@ -145,8 +145,6 @@ pub struct SdfModel {
     sigma_schedule: Option<(f64, u64)>,
     /// The loss's weights: the priors', and which planes the renderer draws.
     weights: SdfLossConfig,
-    /// Draw the distance plane (the loss has a distance term).
-    distance: bool,
     /// Learned pairs: θ holds softmax logits after the points.
     learned: Option<LearnedPattern>,
 }
@@ -225,7 +223,7 @@ impl SdfModel {
             },
             sigma,
             intensity: self.weights.pixel > 0.0,
-            distance: self.distance,
+            distance: self.weights.distance > 0.0,
         }
     }
 
@@ -409,7 +407,6 @@ impl SdfProblem {
             render,
             sigma,
             sigma_schedule: None,
-            distance: plane_loss.target_dist.is_some(),
             weights: loss,
             learned: None,
         };
