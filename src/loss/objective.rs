@@ -375,6 +375,13 @@ impl Objective {
                 &mut dssim,
             )?;
         }
+        // Summed in the order the terms are logged: MS-MSE, D-SSIM, LPIPS, moments.
+        if let (true, Some((net, feats))) = (c.lpips_weight > 0.0, &self.lpips) {
+            let d = net
+                .distance_to(&downsample(pred, c.lpips_downsample)?, feats)?
+                .to_dtype(pred.dtype())?;
+            add(d, c.lpips_weight, &mut lpips)?;
+        }
         if c.moments_weight > 0.0 {
             let m = Moments {
                 max_order: c.moments_max_order,
@@ -384,12 +391,6 @@ impl Objective {
                 c.moments_weight,
                 &mut moments,
             )?;
-        }
-        if let (true, Some((net, feats))) = (c.lpips_weight > 0.0, &self.lpips) {
-            let d = net
-                .distance_to(&downsample(pred, c.lpips_downsample)?, feats)?
-                .to_dtype(pred.dtype())?;
-            add(d, c.lpips_weight, &mut lpips)?;
         }
         let total = b.total;
         let image_total = match terms.split_first() {

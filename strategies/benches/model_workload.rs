@@ -21,7 +21,8 @@ use ifslab::loss::{LossConfig, Objective};
 use ifslab::model::Svd;
 use ifslab::model::param::Parameterisation;
 use ifslab::render::splat::{self, Blend, SplatConfig, SplatOp, maps_from_tensor, maps_to_tensor};
-use ifslab_strategies::problems::image::{AffineModel, AnyModel, DrawOptions};
+use ifslab_strategies::problems::image::config::MapProbabilities;
+use ifslab_strategies::problems::image::{AffineModel, AnyModel, ImageRendering};
 
 include!("../../benches/common/fixtures.rs");
 
@@ -77,17 +78,16 @@ fn main() {
                 p.backward(&theta, &gm).expect("chain rule")[0]
             }
             "model" => {
-                let (_, g) = any
-                    .evaluate(
-                        &theta,
-                        cfg.clone(),
-                        RUN_SEED,
-                        call as u64,
-                        &DrawOptions::default(),
-                        &objective,
-                    )
-                    .expect("evaluate");
-                g[0]
+                let rendering = ImageRendering {
+                    splat: cfg.clone(),
+                    sigma_schedule: None,
+                    probabilities: MapProbabilities::Uniform,
+                    clamp: false,
+                    seed: RUN_SEED,
+                };
+                any.evaluate(&theta, &rendering, &objective, call as u64)
+                    .expect("evaluate")
+                    .grad[0]
             }
             "setup" => 0.0,
             s => panic!("unknown stage {s}"),

@@ -171,8 +171,9 @@ pub fn render_msmse<M: DiffMap2>(
     }
 }
 
-/// The maps with their parameters rounded to f32, as the candle op sees them.
-fn through_f32<M: DiffMap2>(maps: &[M]) -> Vec<M> {
+/// The maps with their parameters rounded to f32, as the candle op sees them (what both
+/// routes render).
+pub fn through_f32<M: DiffMap2>(maps: &[M]) -> Vec<M> {
     maps.iter()
         .map(|m| {
             let mut p = vec![0.0; m.n_params()];

@@ -62,7 +62,9 @@ use serde::{Deserialize, Serialize};
 pub use candle_op::{SplatOp, maps_from_tensor, maps_to_tensor, params_to_tensor};
 #[allow(deprecated)] // the former name, kept for code written against it
 pub use frame::{FrameState, SplatFraming, SplatView};
-pub use iteration::{gpu_route, objective_and_grad, objective_and_grad_candle, render_msmse};
+pub use iteration::{
+    gpu_route, objective_and_grad, objective_and_grad_candle, render_msmse, through_f32,
+};
 pub use kernel::{Blend, SplatGrid, SplatReal, SplatState, release_buffers};
 pub use renderer::Splat;
 pub use trajectories::TrajectoryTape;

@@ -15,10 +15,12 @@
 //! | [`FlameProblem`](crate::problems::flame::FlameProblem) | θ → a flame stack; per-group learning rates | `flame_diff::FlameRenderer` | MSE (and D-SSIM) per RGB channel |
 //! | [`Image3dProblem`](crate::problems::image3d::Image3dProblem) | θ → SVD maps of space, σ coarse to fine; the volume prior | `splat3d::MultiViewSplat` | MS-MSE per view, averaged, and the ink guard |
 //!
-//! The 2-D image problem ([`crate::problems::image::ImageProblem`]) keeps its own route: its
-//! loss is a candle graph (LPIPS, moments) and, with the splat on a GPU, one fused pass that
-//! never brings the image to the CPU; its CPU route is the same three steps through the
-//! splat's `Renderer` impl (`ifslab::render::splat::iteration`).
+//! | [`SplatProblem`](crate::problems::image::instance::SplatProblem) | θ → maps of any [`ImageModel`](crate::problems::image::ImageModel), σ coarse to fine, map probabilities by rule; the map regulariser | `splat::Splat` | the composite `Objective` (MS-MSE, D-SSIM, LPIPS, moments), a candle graph to the image |
+//!
+//! The 2-D image problem's map type is picked by a config at run time, so
+//! [`ImageProblem`](crate::problems::image::ImageProblem) holds its model type-erased and
+//! builds the instance of that map type per evaluation; with the splat on a GPU it takes the
+//! fused pass that never brings the image to the CPU instead.
 //!
 //! **Adding a problem** is a model and, when none of the existing ones fits, a loss: the
 //! model names its renderer and says what a θ draws; the loss scores planes. Their terms
@@ -47,6 +49,17 @@ pub enum Moment {
         /// `t / T`.
         frac: f64,
     },
+}
+
+impl Moment {
+    /// The random stream of this moment for a renderer drawing afresh every call: the
+    /// iteration, or the annealing candidate's stream.
+    pub fn stream(self) -> u64 {
+        match self {
+            Moment::Iteration(t) => t,
+            Moment::Progress { stream, .. } => stream,
+        }
+    }
 }
 
 /// The renderer of a [`SceneModel`].
@@ -150,9 +163,12 @@ impl Terms {
             .map_or(0.0, |i| self.values[i].0)
     }
 
-    /// The loss: `Σ weight·value` in the names' order.
+    /// The loss: `Σ weight·value` in the names' order, terms of weight 0 left out (a term
+    /// not computed may be logged as NaN with weight 0).
     pub fn total(&self) -> f64 {
-        self.values.iter().fold(0.0, |s, &(v, w)| s + w * v)
+        self.values
+            .iter()
+            .fold(0.0, |s, &(v, w)| if w == 0.0 { s } else { s + w * v })
     }
 
     /// The unweighted terms, named, in order.
@@ -339,6 +355,10 @@ mod tests {
         assert_eq!(t.total(), 3.0 + 1.0);
         assert_eq!(t.get("b"), 0.0);
         assert_eq!(t.named(), vec![("a", 1.0), ("b", 0.0), ("c", 2.0)]);
+        // A term not computed, logged as NaN with weight 0, does not count.
+        t.set("b", f64::NAN, 0.0);
+        assert_eq!(t.total(), 4.0);
+        assert!(t.get("b").is_nan());
     }
 
     #[test]

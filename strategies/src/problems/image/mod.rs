@@ -8,7 +8,8 @@
 //!   covers, scored by their attractors);
 //! - [`model`]: θ ↔ maps of one type (affine under a parameterisation, similitudes, …): the
 //!   open set of map types an inversion can fit (`[model] family`);
-//! - [`problem`]: θ → maps → splat → composite loss and its gradient;
+//! - [`problem`]: θ → maps → splat → composite loss and its gradient, each evaluation a pass
+//!   of the one image problem's instance for the model's map type ([`instance`]);
 //! - [`config`]: the validated TOML configuration of a run;
 //! - [`run`]: initial code, solver, executor, checkpoint and resume;
 //! - [`mod@landscape`]: the objective on a 2-D slice of parameter space (loss landscapes).
@@ -19,6 +20,7 @@
 pub mod collage;
 pub mod config;
 pub mod init;
+pub mod instance;
 pub mod landscape;
 pub mod model;
 pub mod polish;
@@ -28,10 +30,11 @@ pub mod target;
 
 pub use config::{BestOfStarts, InitKind, InversionConfig, StrategyConfig, TargetConfig};
 pub use init::{initial_theta, ranked_starts};
+pub use instance::{ImageRendering, SplatProblem, splat_problem};
 pub use landscape::{Directions, Landscape, LandscapeConfig, landscape, slice};
 pub use model::{
-    AffineModel, AnyModel, DrawOptions, ImageModel, MODELS, ModelEntry, SimilitudeModel,
-    find_model, models, register_model,
+    AffineModel, AnyModel, ImageModel, MODELS, ModelEntry, SimilitudeModel, find_model, models,
+    register_model,
 };
 pub use problem::ImageProblem;
 pub use run::{InversionOutcome, SELECTION_STREAMS, Selection, ensure_new_run_dir, run_inversion};

@@ -17,13 +17,16 @@ use candle_core::Tensor;
 use ifslab::loss::{LossBreakdown, Objective};
 use ifslab::model::diff_map::{AffinePart, Similitude2};
 use ifslab::model::{Affine2, Parameterisation};
-use ifslab::render::splat::{self, Splat, SplatConfig};
-use ifslab::render::{Renderer, Sampler};
+use ifslab::render::Renderer;
+use ifslab::render::splat::{self, Splat};
 
 use ifslab::model::ParamKind;
 use serde::{Deserialize, Serialize};
 
+use crate::driver::Evaluation;
 use crate::error::{Error, Result};
+use crate::problems::image::instance::{self, ImageRendering, splat_problem};
+use crate::problems::render_problem::Moment;
 
 /// θ ↔ maps of type [`ImageModel::Map`]: what the image problem fits.
 pub trait ImageModel: Send + Sync + 'static {
@@ -49,45 +52,33 @@ pub trait ImageModel: Send + Sync + 'static {
 }
 
 /// Any [`ImageModel`], its map type erased: what the image problem holds. Implemented for
-/// every model; each call is monomorphised for the model's map type inside.
+/// every model; each call builds the problem's instance of the model's map type
+/// ([`SplatProblem`](super::instance::SplatProblem)) or its parts, monomorphised inside.
 pub trait AnyModel: Send + Sync {
-    /// The loss terms at θ and the gradient of the total with respect to θ: θ → maps → splat
-    /// (σ of this iteration, the chaos game of draw `stream` of the run seeded `seed`, as
-    /// the splat's [`Sampler`] gives it) → `objective` and back
-    /// ([`splat::objective_and_grad`]: fused on the GPU where it can, else the splat op
-    /// through candle's autograd), then the model's chain rule.
+    /// The loss at θ, its terms and its gradient with respect to θ at iteration `iter` of a
+    /// run drawing θ as `rendering` says, scored by `objective`
+    /// ([`instance::evaluate`](super::instance::evaluate): the one image problem's pass, or
+    /// the fused GPU pass where it applies).
     fn evaluate(
         &self,
         theta: &[f64],
-        splat: SplatConfig,
-        seed: u64,
-        stream: u64,
-        draw: &DrawOptions,
+        rendering: &ImageRendering,
         objective: &Objective,
-    ) -> Result<(LossBreakdown, Vec<f64>)>;
+        iter: u64,
+    ) -> Result<Evaluation>;
 
-    /// The objective's MS-MSE of a render of θ (draw `stream` of the run seeded `seed`)
-    /// computed on the GPU (only the scalar comes back), or `None` where that route does not
-    /// apply ([`splat::render_msmse`]).
+    /// The objective's MS-MSE of a render of θ at `at` computed on the GPU (only the scalar
+    /// comes back), or `None` where that route does not apply ([`splat::render_msmse`]).
     fn render_msmse(
         &self,
         theta: &[f64],
-        splat: &SplatConfig,
-        seed: u64,
-        stream: u64,
-        draw: &DrawOptions,
+        rendering: &ImageRendering,
         objective: &Objective,
+        at: Moment,
     ) -> Result<Option<f64>>;
 
-    /// The splat render of θ, draw `stream` of the run seeded `seed` (no gradient).
-    fn render(
-        &self,
-        theta: &[f64],
-        splat: &SplatConfig,
-        seed: u64,
-        stream: u64,
-        draw: &DrawOptions,
-    ) -> Result<Vec<f32>>;
+    /// The splat render of θ at `at` (no gradient; the maps as decoded, not rounded).
+    fn render(&self, theta: &[f64], rendering: &ImageRendering, at: Moment) -> Result<Vec<f32>>;
 
     /// The loss terms of a render `pred` of θ (the regulariser sees θ's maps).
     fn breakdown(
@@ -110,73 +101,41 @@ pub trait AnyModel: Send + Sync {
     fn n_maps(&self, theta: &[f64]) -> Result<usize>;
 }
 
-/// What a splat render of θ needs beyond its [`SplatConfig`]: the chaos game's map
-/// probabilities (uniform when `None`) and whether the image is clamped to [0, 1] (Learning
-/// Fractals sums Gaussians, then clamps).
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct DrawOptions {
-    /// Probability of each map in the chaos game.
-    pub probs: Option<Vec<f64>>,
-    /// Clamp the rendered image to [0, 1].
-    pub clamp: bool,
-}
-
 impl<M: ImageModel> AnyModel for M {
     fn evaluate(
         &self,
         theta: &[f64],
-        splat: SplatConfig,
-        seed: u64,
-        stream: u64,
-        draw: &DrawOptions,
+        rendering: &ImageRendering,
         objective: &Objective,
-    ) -> Result<(LossBreakdown, Vec<f64>)> {
-        let maps = self.decode(theta)?;
-        let (splat, chaos_seed) = sampled::<M::Map>(splat, &maps, seed, stream, draw);
-        let (breakdown, g) = splat::objective_and_grad(
-            &splat.cfg,
-            &maps,
-            splat.probs.as_deref(),
-            draw.clamp,
-            chaos_seed,
-            objective,
-        )?;
-        Ok((breakdown, self.backward(theta, &g)?))
+        iter: u64,
+    ) -> Result<Evaluation> {
+        instance::evaluate(&splat_problem(self, rendering, objective), theta, iter)
     }
 
     fn render_msmse(
         &self,
         theta: &[f64],
-        splat: &SplatConfig,
-        seed: u64,
-        stream: u64,
-        draw: &DrawOptions,
+        rendering: &ImageRendering,
         objective: &Objective,
+        at: Moment,
     ) -> Result<Option<f64>> {
         let maps = self.decode(theta)?;
-        let (splat, chaos_seed) = sampled::<M::Map>(splat.clone(), &maps, seed, stream, draw);
+        let (renderer, seed) = drawn(self, rendering, &maps, at)?;
         Ok(splat::render_msmse(
-            &splat.cfg,
+            &renderer.cfg,
             &maps,
-            splat.probs.as_deref(),
-            draw.clamp,
-            chaos_seed,
+            renderer.probs.as_deref(),
+            rendering.clamp,
+            seed,
             objective,
         )?)
     }
 
-    fn render(
-        &self,
-        theta: &[f64],
-        splat: &SplatConfig,
-        seed: u64,
-        stream: u64,
-        draw: &DrawOptions,
-    ) -> Result<Vec<f32>> {
+    fn render(&self, theta: &[f64], rendering: &ImageRendering, at: Moment) -> Result<Vec<f32>> {
         let maps = self.decode(theta)?;
-        let (renderer, chaos_seed) = sampled::<M::Map>(splat.clone(), &maps, seed, stream, draw);
-        let mut img = renderer.forward(&maps, &chaos_seed)?.0;
-        if draw.clamp {
+        let (renderer, seed) = drawn(self, rendering, &maps, at)?;
+        let mut img = renderer.forward(&maps, &seed)?.0;
+        if rendering.clamp {
             img.iter_mut().for_each(|v| *v = v.min(1.0));
         }
         Ok(img)
@@ -209,20 +168,17 @@ impl<M: ImageModel> AnyModel for M {
     }
 }
 
-/// The splat that renders `maps` with `cfg` and `draw`'s map probabilities, and its chaos
-/// game's seed for draw `stream` of the run seeded `seed`, from the run's [`Sampler`] (the
-/// splat draws every call: the sampler keeps nothing, so one made here for the call is the
-/// run's).
-fn sampled<M: AffinePart>(
-    cfg: SplatConfig,
-    maps: &[M],
-    seed: u64,
-    stream: u64,
-    draw: &DrawOptions,
-) -> (Splat<M, f32>, u64) {
-    let splat = Splat::<M, f32>::new(cfg).with_probabilities(draw.probs.clone());
-    let chaos_seed = *Sampler::new(seed).sampling(&splat, maps, stream);
-    (splat, chaos_seed)
+/// The splat that draws `maps` at `at` and its chaos game's seed: draw `stream` of the
+/// run's seed, as the run's [`Sampler`](ifslab::render::Sampler) gives it to the instance.
+fn drawn<M: ImageModel>(
+    model: &M,
+    rendering: &ImageRendering,
+    maps: &[M::Map],
+    at: Moment,
+) -> Result<(Splat<M::Map, f32>, u64)> {
+    let renderer = rendering.splat(model, maps, at)?;
+    let seed = renderer.sampling(maps, rendering.seed, at.stream());
+    Ok((renderer, seed))
 }
 
 /// General affine maps under a [`Parameterisation`] (`family = "affine"`, the default).

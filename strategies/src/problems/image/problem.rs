@@ -1,9 +1,7 @@
-//! The image-inversion problem: θ → maps → fused splat op → composite loss, differentiated
-//! through candle's autograd (the splat's reverse pass is the op's own) and the
-//! parameterisation's chain rule — or, with the splat on the GPU and a loss the GPU computes,
-//! in one fused GPU pass (`ifslab::render::splat::iteration`).
-
-use std::borrow::Cow;
+//! The image-inversion problem: θ → maps → splat → composite loss and its gradient. Each
+//! evaluation is a pass of the one image problem's instance for the model's map type
+//! ([`instance::SplatProblem`](super::instance::SplatProblem)) — or, with the splat on the
+//! GPU and a loss the GPU computes, one fused GPU pass (`ifslab::render::splat::iteration`).
 
 use candle_core::{Device, Tensor};
 use ifslab::loss::{ImageLoss, LossBreakdown, LossConfig, MsMse, Objective};
@@ -14,26 +12,19 @@ use crate::error::{Error, Result};
 use crate::optim::annealing::Anneal;
 use crate::problems::image::config::InversionConfig;
 use crate::problems::image::config::MapProbabilities;
-use crate::problems::image::model::{AnyModel, DrawOptions};
-use ifslab::model::ProbabilityRule;
+use crate::problems::image::instance::ImageRendering;
+use crate::problems::image::model::AnyModel;
+use crate::problems::render_problem::Moment;
 
-/// Names of the logged loss terms, in column order.
-pub const TERMS: [&str; 5] = ["msmse", "dssim", "lpips", "moments", "regulariser"];
+pub use crate::problems::image::instance::TERMS;
 
-/// Fit a `size × size` target with the maps of a model rendered by the fused splat op.
+/// Fit a `size × size` target with the maps of a model rendered by the splat.
 pub struct ImageProblem {
     model: Box<dyn AnyModel>,
-    splat: SplatConfig,
+    rendering: ImageRendering,
     objective: Objective,
     target: Vec<f32>,
     anneal_mse: MsMse,
-    seed: u64,
-    /// `(σ at t = T, T)` when σ follows a schedule.
-    sigma_schedule: Option<(f64, u64)>,
-    /// How the chaos game picks maps.
-    probabilities: MapProbabilities,
-    /// Clamp renders to [0, 1].
-    clamp: bool,
 }
 
 impl ImageProblem {
@@ -62,14 +53,16 @@ impl ImageProblem {
         let objective = Objective::new(loss, &t)?;
         Ok(ImageProblem {
             model,
-            splat,
+            rendering: ImageRendering {
+                splat,
+                sigma_schedule: None,
+                probabilities: MapProbabilities::Uniform,
+                clamp: false,
+                seed,
+            },
             objective,
             target,
             anneal_mse,
-            seed,
-            sigma_schedule: None,
-            probabilities: MapProbabilities::Uniform,
-            clamp: false,
         })
     }
 
@@ -83,8 +76,8 @@ impl ImageProblem {
             target,
             cfg.seed,
         )?;
-        p.probabilities = cfg.model.probabilities;
-        p.clamp = cfg.renderer.clamp;
+        p.rendering.probabilities = cfg.model.probabilities;
+        p.rendering.clamp = cfg.renderer.clamp;
         match cfg.renderer.sigma_final {
             Some(end) => p.with_sigma_schedule(end, cfg.iterations),
             None => Ok(p),
@@ -100,27 +93,8 @@ impl ImageProblem {
                 format!("must be > 0, got {sigma_final}"),
             ));
         }
-        self.sigma_schedule = Some((sigma_final, iterations.max(1)));
+        self.rendering.sigma_schedule = Some((sigma_final, iterations.max(1)));
         Ok(self)
-    }
-
-    /// The renderer at progress `frac = t/T` of the run.
-    fn splat_at(&self, frac: f64) -> Cow<'_, SplatConfig> {
-        match self.sigma_schedule {
-            None => Cow::Borrowed(&self.splat),
-            Some((end, _)) => {
-                let s0 = self.splat.sigma;
-                Cow::Owned(SplatConfig {
-                    sigma: s0 * (end / s0).powf(frac.clamp(0.0, 1.0)),
-                    ..self.splat.clone()
-                })
-            }
-        }
-    }
-
-    fn progress(&self, iter: u64) -> f64 {
-        self.sigma_schedule
-            .map_or(0.0, |(_, t)| iter as f64 / t as f64)
     }
 
     /// The model θ is decoded with.
@@ -130,12 +104,17 @@ impl ImageProblem {
 
     /// The renderer's configuration at the start of the run.
     pub fn splat_config(&self) -> &SplatConfig {
-        &self.splat
+        &self.rendering.splat
+    }
+
+    /// How θ is drawn: the splat, its σ schedule, the map probabilities, clamping, the seed.
+    pub fn rendering(&self) -> &ImageRendering {
+        &self.rendering
     }
 
     /// The renderer's configuration at the end of the run (σ scheduled, if it is).
     pub fn final_splat_config(&self) -> SplatConfig {
-        self.splat_at(1.0).into_owned()
+        self.rendering.splat_at(1.0).into_owned()
     }
 
     /// The framed target.
@@ -154,44 +133,16 @@ impl ImageProblem {
     }
 
     fn render_at(&self, theta: &[f64], stream: u64, frac: f64) -> Result<Vec<f32>> {
-        self.model.render(
-            theta,
-            &self.splat_at(frac),
-            self.seed,
-            stream,
-            &self.draw_options(theta)?,
-        )
-    }
-
-    /// The map probabilities and clamping of a render of θ.
-    fn draw_options(&self, theta: &[f64]) -> Result<DrawOptions> {
-        let probs = match self.probabilities {
-            MapProbabilities::Uniform => None,
-            MapProbabilities::Determinant => {
-                let dets: Vec<f64> = self
-                    .model
-                    .affine_maps(theta)?
-                    .iter()
-                    .map(|m| m.det().abs())
-                    .collect();
-                // ∝ |det| with no floor; all-degenerate maps fall back to uniform.
-                (dets.iter().sum::<f64>() > 0.0)
-                    .then(|| ProbabilityRule::Determinant { floor: 0.0 }.resolve(&dets))
-                    .transpose()?
-            }
-        };
-        Ok(DrawOptions {
-            probs,
-            clamp: self.clamp,
-        })
+        self.model
+            .render(theta, &self.rendering, Moment::Progress { stream, frac })
     }
 
     /// The objective's terms at θ on random stream `stream`, without a gradient (for loss
     /// landscapes and evaluation), with the renderer the run ends with.
     pub fn loss_breakdown(&self, theta: &[f64], stream: u64) -> Result<LossBreakdown> {
         let img = self.render_at(theta, stream, 1.0)?;
-        let pred = Tensor::from_vec(img, (self.splat.height, self.splat.width), &Device::Cpu)
-            .map_err(tensor_err)?;
+        let shape = (self.rendering.splat.height, self.rendering.splat.width);
+        let pred = Tensor::from_vec(img, shape, &Device::Cpu).map_err(tensor_err)?;
         self.model.breakdown(theta, &pred, &self.objective)
     }
 }
@@ -202,24 +153,8 @@ fn tensor_err(e: candle_core::Error) -> Error {
 
 impl Differentiable for ImageProblem {
     fn evaluate(&self, theta: &[f64], iter: u64) -> Result<Evaluation> {
-        let (b, grad) = self.model.evaluate(
-            theta,
-            self.splat_at(self.progress(iter)).into_owned(),
-            self.seed,
-            iter,
-            &self.draw_options(theta)?,
-            &self.objective,
-        )?;
-        let terms = [b.msmse, b.dssim, b.lpips, b.moments, b.regulariser]
-            .iter()
-            .zip(TERMS)
-            .map(|(v, n)| (n, v.unwrap_or(f64::NAN)))
-            .collect();
-        Ok(Evaluation {
-            loss: b.total,
-            grad,
-            terms,
-        })
+        self.model
+            .evaluate(theta, &self.rendering, &self.objective, iter)
     }
 
     fn project(&self, theta: &mut [f64]) {
@@ -228,18 +163,19 @@ impl Differentiable for ImageProblem {
 }
 
 impl Anneal for ImageProblem {
+    /// The MS-MSE alone of a render of θ (the maps as decoded) on stream `stream` at
+    /// progress `frac`.
     fn anneal_cost(&self, theta: &[f64], stream: u64, frac: f64) -> Result<f64> {
         // With the splat on the GPU, the render is scored there and only the scalar comes
         // back; otherwise the render comes down and is scored here (the CPU's candidates do
         // not decode θ for the GPU's attempt first).
-        if self.splat.device == SplatDevice::Cuda
+        let r = &self.rendering;
+        if r.splat.device == SplatDevice::Cuda
             && let Some(v) = self.model.render_msmse(
                 theta,
-                &self.splat_at(frac),
-                self.seed,
-                stream,
-                &self.draw_options(theta)?,
+                r,
                 &self.objective,
+                Moment::Progress { stream, frac },
             )?
         {
             return Ok(v);
@@ -247,6 +183,6 @@ impl Anneal for ImageProblem {
         let pred = self.render_at(theta, stream, frac)?;
         Ok(self
             .anneal_mse
-            .value(&pred, &self.target, self.splat.width, self.splat.height)? as f64)
+            .value(&pred, &self.target, r.splat.width, r.splat.height)? as f64)
     }
 }

@@ -154,10 +154,7 @@ impl<T: SplatReal> SceneModel for Image3dModel<T> {
 
     /// Iteration `t` draws stream `t`.
     fn draw(&self, at: Moment) -> u64 {
-        match at {
-            Moment::Iteration(iter) => iter,
-            Moment::Progress { stream, .. } => stream,
-        }
+        at.stream()
     }
 
     fn priors(
