@@ -97,6 +97,20 @@ impl ImageRendering {
         };
         Ok(Splat::new(self.splat_at(self.progress(at)).into_owned()).with_probabilities(probs))
     }
+
+    /// [`ImageRendering::splat`] and its chaos game's seed at `at`: stream `at.stream()` of
+    /// the run's seed, as the run's [`Sampler`](ifslab::render::Sampler) gives it to the
+    /// instance.
+    pub fn drawn<IM: ImageModel>(
+        &self,
+        model: &IM,
+        maps: &[IM::Map],
+        at: Moment,
+    ) -> Result<(Splat<IM::Map, f32>, u64)> {
+        let renderer = self.splat(model, maps, at)?;
+        let seed = renderer.sampling(maps, self.seed, at.stream());
+        Ok((renderer, seed))
+    }
 }
 
 /// θ ↔ the maps of an [`ImageModel`], drawn by the splat: the model half of a
@@ -277,8 +291,7 @@ pub fn evaluate<IM: ImageModel>(
     let (rendering, objective) = (model.rendering, model.objective);
     if splat::gpu_route(&rendering.splat, objective, rendering.clamp).is_ok() {
         let maps = model.model.decode(theta)?;
-        let renderer = rendering.splat(model.model, &maps, at)?;
-        let seed = renderer.sampling(&maps, rendering.seed, model.draw(at));
+        let (renderer, seed) = rendering.drawn(model.model, &maps, at)?;
         let (b, g) = splat::objective_and_grad(
             &renderer.cfg,
             &maps,

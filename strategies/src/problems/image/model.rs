@@ -18,7 +18,7 @@ use ifslab::loss::{LossBreakdown, Objective};
 use ifslab::model::diff_map::{AffinePart, Similitude2};
 use ifslab::model::{Affine2, Parameterisation};
 use ifslab::render::Renderer;
-use ifslab::render::splat::{self, Splat};
+use ifslab::render::splat;
 
 use ifslab::model::ParamKind;
 use serde::{Deserialize, Serialize};
@@ -120,7 +120,7 @@ impl<M: ImageModel> AnyModel for M {
         at: Moment,
     ) -> Result<Option<f64>> {
         let maps = self.decode(theta)?;
-        let (renderer, seed) = drawn(self, rendering, &maps, at)?;
+        let (renderer, seed) = rendering.drawn(self, &maps, at)?;
         Ok(splat::render_msmse(
             &renderer.cfg,
             &maps,
@@ -133,7 +133,7 @@ impl<M: ImageModel> AnyModel for M {
 
     fn render(&self, theta: &[f64], rendering: &ImageRendering, at: Moment) -> Result<Vec<f32>> {
         let maps = self.decode(theta)?;
-        let (renderer, seed) = drawn(self, rendering, &maps, at)?;
+        let (renderer, seed) = rendering.drawn(self, &maps, at)?;
         let mut img = renderer.forward(&maps, &seed)?.0;
         if rendering.clamp {
             img.iter_mut().for_each(|v| *v = v.min(1.0));
@@ -166,19 +166,6 @@ impl<M: ImageModel> AnyModel for M {
     fn n_maps(&self, theta: &[f64]) -> Result<usize> {
         Ok(self.decode(theta)?.len())
     }
-}
-
-/// The splat that draws `maps` at `at` and its chaos game's seed: draw `stream` of the
-/// run's seed, as the run's [`Sampler`](ifslab::render::Sampler) gives it to the instance.
-fn drawn<M: ImageModel>(
-    model: &M,
-    rendering: &ImageRendering,
-    maps: &[M::Map],
-    at: Moment,
-) -> Result<(Splat<M::Map, f32>, u64)> {
-    let renderer = rendering.splat(model, maps, at)?;
-    let seed = renderer.sampling(maps, rendering.seed, at.stream());
-    Ok((renderer, seed))
 }
 
 /// General affine maps under a [`Parameterisation`] (`family = "affine"`, the default).
