@@ -2,8 +2,10 @@
 //! instruction count (a shared machine makes wall-clock too noisy for a few per cent): the
 //! affine-only path the problem used before map families existed (θ → SVD decode → `(n, 6)`
 //! tensor → `SplatOp::new` → objective on `Affine2` → chain rule) against the path it uses now
-//! for every family (`AffineModel` behind `AnyModel`: flat parameters → `SplatOp::with_maps` →
-//! `Objective::evaluate_params` → `ImageModel::backward`). Both in one build, same setup.
+//! for every family (`AffineModel` behind `AnyModel`: a pass of the one image problem's
+//! instance, `SplatProblem` — decode, the splat as a `Renderer`, the objective's candle graph to
+//! the image, the splat's reverse pass, the regulariser as the prior, `ImageModel::backward`).
+//! Both in one build, same setup.
 //!
 //! ```sh
 //! cargo bench -p ifslab-strategies --bench model_workload --no-run   # prints the path
