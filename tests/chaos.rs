@@ -4,7 +4,7 @@
 use ifslab::Error;
 use ifslab::chaos::{ChaosGame, Isa, MapSampler, PointStream, Trajectory, generate_nd};
 use ifslab::model::random::sample_code;
-use ifslab::model::{Affine2, Map2, library};
+use ifslab::model::{Affine2, Map, Map2, library};
 use ifslab::render::{RenderConfig, RenderMode, render};
 
 fn with_threads<T: Send>(n: usize, f: impl FnOnce() -> T + Send) -> T {
@@ -159,7 +159,7 @@ fn stream_points<M: Map2>(stream: &PointStream<'_, M>, first: u64, kept: &[u64])
 /// An affine map evaluated with separate multiplies and adds (two roundings per term).
 struct Unfused(Affine2);
 
-impl Map2 for Unfused {
+impl Map<2> for Unfused {
     fn apply(&self, p: [f64; 2]) -> [f64; 2] {
         let m = &self.0.m;
         [

@@ -3,7 +3,7 @@
 //!
 //! The map is a flame-like transform `f(x) = y + w·sin(y)` (sine per coordinate) with
 //! `y = A·x + b`: an affine step followed by a learnable amount of the *sinusoidal*
-//! variation. Implementing [`Map2`] (forward), [`DiffMap2`] (parameters and the two
+//! variation. Implementing [`Map<2>`](Map) (forward), [`DiffMap<2>`](DiffMap) (parameters and the two
 //! vector–Jacobian products) and [`AffinePart`] (what the regulariser sees) is all it takes:
 //! the chaos game, the framing, the splat, the candle op and the objective then work on it
 //! unchanged, monomorphised for it.
@@ -21,7 +21,7 @@ mod common;
 use candle_core::{Device, Tensor, Var};
 use ifslab::loss::{LossConfig, Objective};
 use ifslab::model::diff_map::{flat_params, set_flat_params, vjp_check};
-use ifslab::model::{Affine2, AffinePart, DiffMap2, Map2};
+use ifslab::model::{Affine2, AffinePart, DiffMap, Map};
 use ifslab::render::splat::{self, SplatConfig, SplatOp};
 use proptest::prelude::*;
 
@@ -32,14 +32,14 @@ struct Sinusoidal {
     w: f64,
 }
 
-impl Map2 for Sinusoidal {
+impl Map<2> for Sinusoidal {
     fn apply(&self, p: [f64; 2]) -> [f64; 2] {
         let y = self.affine.apply(p);
         [y[0] + self.w * y[0].sin(), y[1] + self.w * y[1].sin()]
     }
 }
 
-impl DiffMap2 for Sinusoidal {
+impl DiffMap<2> for Sinusoidal {
     // `PARAMS` is left at `None`, so the backward scan finds each map's gradient through the
     // offsets table: the path of map types whose parameter count varies from map to map.
 

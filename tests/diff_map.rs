@@ -6,7 +6,7 @@
 use candle_core::{DType, Device, Tensor, Var};
 use ifslab::chaos::ChaosGame;
 use ifslab::model::diff_map::{VjpCheck, flat_params, vjp_check};
-use ifslab::model::{Affine2, AffinePart, DiffMap2, Map2, Similitude2};
+use ifslab::model::{Affine2, AffinePart, DiffMap, Map, Similitude2};
 use ifslab::render::splat::{self, Blend, SplatConfig, SplatOp, SplatView, params_to_tensor};
 use proptest::prelude::*;
 
@@ -235,13 +235,13 @@ fn the_op_refuses_bad_arguments() {
 #[derive(Clone, Copy, Debug)]
 struct MisdeclaredAffine(Affine2);
 
-impl Map2 for MisdeclaredAffine {
+impl Map<2> for MisdeclaredAffine {
     fn apply(&self, p: [f64; 2]) -> [f64; 2] {
         self.0.apply(p)
     }
 }
 
-impl DiffMap2 for MisdeclaredAffine {
+impl DiffMap<2> for MisdeclaredAffine {
     const PARAMS: Option<usize> = Some(4);
 
     fn n_params(&self) -> usize {

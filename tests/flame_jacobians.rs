@@ -9,7 +9,7 @@
 //! step. Such cases are discarded (`prop_assume!`), so they count against proptest's limit
 //! on rejections: a derivative that is wrong everywhere cannot hide behind them.
 
-use ifslab::model::Map2;
+use ifslab::model::Map;
 use ifslab::model::flame::{SmoothXform, Variation, VariationKind, Xform};
 use proptest::prelude::*;
 

@@ -9,7 +9,7 @@ use ifslab::model::diff_map::vjp_check;
 use ifslab::model::segment::{
     BaseFigure, Pattern, PatternFile, PrimitiveKind, SegmentMap, builtin, resolve_pattern,
 };
-use ifslab::model::{DiffMap2, Map2};
+use ifslab::model::{DiffMap, Map};
 use proptest::prelude::*;
 
 fn pt() -> impl Strategy<Value = [f64; 2]> {

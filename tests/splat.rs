@@ -334,7 +334,7 @@ fn cuda_without_the_feature_is_refused_clearly() {
 fn instruction_sets_give_the_same_tape_and_gradient() {
     use ifslab::isa::Isa;
     use ifslab::model::flame::{SmoothXform, Variation, VariationKind as V, Xform};
-    use ifslab::model::{DiffMap2, Map2, Similitude2};
+    use ifslab::model::{DiffMap2, Map, Similitude2};
     use ifslab::render::splat::trajectories::run_with_isa;
 
     fn both<M: DiffMap2>(maps: &[M], what: &str) {

@@ -14,7 +14,7 @@ use ifslab::Error;
 use ifslab::chaos::{ChaosGame, Tape3, points3};
 use ifslab::metrics3d::{VoxelBox, chamfer_distance, nearest_distances, voxel_iou, voxel_iou_in};
 use ifslab::model::map3::{
-    Affine3, DiffMap3, Map3, SVD3_PARAMS, Similitude3, SvdMap3, flat_params, set_flat_params,
+    Affine3, DiffMap3, Map, SVD3_PARAMS, Similitude3, SvdMap3, flat_params, set_flat_params,
     sierpinski_tetrahedron, vjp_check,
 };
 use ifslab::render::splat::Blend;

@@ -210,7 +210,7 @@ fn deep_density_tiles_are_inked_and_finite() {
                 let maps = code.affine2().unwrap();
                 let mut q = [0.0, 0.0];
                 for i in 0..60 {
-                    q = ifslab::model::affine::Map2::apply(&maps[[1, 1, 2, 1, 3][i % 5]], q);
+                    q = ifslab::model::Map::apply(&maps[[1, 1, 2, 1, 3][i % 5]], q);
                 }
                 q
             }

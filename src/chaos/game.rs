@@ -9,7 +9,7 @@ use crate::chaos::rng::trajectory_rng;
 use crate::chaos::sampler::MapSampler;
 use crate::error::{Error, Result};
 use crate::isa::Isa;
-use crate::model::affine::{AffineN, Map2};
+use crate::model::{AffineN, Map2};
 
 /// A point farther than this from the origin has left every attractor an affine IFS can
 /// have: its trajectory is reported as divergent.

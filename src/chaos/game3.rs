@@ -135,7 +135,7 @@ impl Tape3 {
     /// `∂L/∂(kept points)` (the layout of [`Self::kept_points`]).
     ///
     /// Per step `k` (map `i = i_{k−1}`, state `x = s_{k−1}`): `λ += ∂L/∂s_k` if `s_k` is kept,
-    /// then `∂L/∂θ_i += (∂f_i/∂θ)(x)ᵀλ` and `λ ← (∂f_i/∂x)(x)ᵀλ` ([`DiffMap3::vjp`]).
+    /// then `∂L/∂θ_i += (∂f_i/∂θ)(x)ᵀλ` and `λ ← (∂f_i/∂x)(x)ᵀλ` ([`DiffMap::vjp`](crate::model::DiffMap::vjp)).
     pub fn backward<M: DiffMap3>(&self, maps: &[M], grad_points: &[[f64; 3]]) -> Result<Vec<f64>> {
         if maps.len() != self.maps {
             return Err(Error::Shape(format!(

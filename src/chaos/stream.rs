@@ -5,7 +5,7 @@ use crate::chaos::game::{Trajectory, is_bounded};
 use crate::chaos::sampler::MapSampler;
 use crate::error::{Error, Result};
 use crate::isa::Isa;
-use crate::model::affine::Map2;
+use crate::model::Map2;
 
 /// Trajectories stepped together: their chains are independent, so interleaving them hides
 /// the latency of each chain's multiply–adds.

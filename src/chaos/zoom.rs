@@ -270,8 +270,8 @@ fn hash(mut z: u64) -> u64 {
 mod tests {
     use super::*;
     use crate::chaos::PointStream;
-    use crate::model::affine::Map2;
     use crate::model::library::builtin;
+    use crate::model::map::Map;
 
     fn sierpinski() -> (Vec<Affine2>, Vec<f64>) {
         let maps = builtin("sierpinski").unwrap().affine2().unwrap();

@@ -4,24 +4,10 @@
 use nalgebra::{DMatrix, DVector, Matrix2, Vector2};
 
 use crate::error::{Error, Result};
+use crate::model::map::Map;
 
-/// A map of the plane that a chaos game can iterate.
-///
-/// Generators and the evaluation renderer are written once against this trait. A map the
-/// differentiable splatter should train also implements
-/// [`DiffMap2`](crate::model::diff_map::DiffMap2) (its parameters and vector–Jacobian
-/// products); [`Affine2`] and [`Similitude2`](crate::model::diff_map::Similitude2) do, and
-/// flame transforms and control-point segment maps are meant to.
-pub trait Map2: Send + Sync {
-    /// The image of `p` under the map.
-    fn apply(&self, p: [f64; 2]) -> [f64; 2];
-
-    /// The map as an [`Affine2`] when it is one (what the deep-zoom sampler composes,
-    /// [`crate::chaos::WindowWords`]); `None`, the default, for non-linear maps.
-    fn affine(&self) -> Option<Affine2> {
-        None
-    }
-}
+// The former home of the plane's map trait: code written against this path keeps compiling.
+pub use crate::model::map::Map2;
 
 /// A 2-D affine map `x ↦ M·x + b`.
 ///
@@ -122,7 +108,7 @@ impl Affine2 {
     }
 }
 
-impl Map2 for Affine2 {
+impl Map<2> for Affine2 {
     #[inline(always)]
     fn apply(&self, p: [f64; 2]) -> [f64; 2] {
         let m = &self.m;
@@ -132,8 +118,12 @@ impl Map2 for Affine2 {
         ]
     }
 
-    fn affine(&self) -> Option<Affine2> {
-        Some(*self)
+    fn affine(&self) -> Option<([[f64; 2]; 2], [f64; 2])> {
+        let m = &self.m;
+        Some((
+            [[m[(0, 0)], m[(0, 1)]], [m[(1, 0)], m[(1, 1)]]],
+            [self.b[0], self.b[1]],
+        ))
     }
 }
 

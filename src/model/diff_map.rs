@@ -1,75 +1,21 @@
-//! Differentiable maps of the plane: what the splatter's reverse pass asks of a map.
+//! Differentiable maps of the plane: [`Affine2`]'s parameters and vector–Jacobian
+//! products, [`Similitude2`], and [`AffinePart`], the affine map a non-affine map shows the
+//! paper's regulariser.
 //!
-//! The fused splat op (`render::splat`) runs the chaos game forward, keeping every state
-//! `x_k` of every trajectory, and differentiates it by a backward scan
-//! `λ_k = (∂f_{i_k}/∂x)(x_k)ᵀ·λ_{k+1} + ∂L/∂x_k`, accumulating
-//! `∂L/∂θ_{i_k} += (∂f_{i_k}/∂θ)(x_k)ᵀ·λ_{k+1}` into the parameters of the map applied at
-//! step k. So a map needs, besides its forward [`Map2::apply`], the two vector–Jacobian
-//! products at a point: with respect to the point and with respect to its own parameters.
-//! For an affine map both Jacobians are constant; for a non-linear one (a flame transform's
-//! variations) they depend on the point, which is why the vjps take `x`.
-//!
-//! Each map owns a flat parameter vector of [`DiffMap2::n_params`] numbers. A set of maps
-//! lays its parameters out map after map ([`param_offsets`]); the splat's reverse pass
-//! returns its gradient in that layout. Parameters shared between maps (segment maps driven
-//! by common control points) live in a layer above: it gathers each map's parameters from
-//! the shared vector and scatters each map's gradient back, as
-//! [`Parameterisation`](crate::model::param::Parameterisation) does for affine maps.
-//!
-//! Implementations here: [`Affine2`] (the six coefficients `a b c d e f`) and
-//! [`Similitude2`] (scale, angle, translation; the reflection is structure, not a
-//! parameter). `tests/custom_map.rs` adds a non-linear map outside the crate and trains
-//! through it end to end; [`vjp_check`] is the finite-difference check every implementation
-//! should pass.
+//! The traits they implement, [`DiffMap<2>`](crate::model::map::DiffMap), and the flat
+//! parameter layout live in [`crate::model::map`], once for every dimension; see there for
+//! what the splat's reverse pass asks of a map. [`Affine2`] has the six coefficients
+//! `a b c d e f`; [`Similitude2`] scale, angle and translation (the reflection is structure,
+//! not a parameter). `tests/custom_map.rs` adds a non-linear map outside the crate and trains
+//! through it end to end.
 
-use crate::error::{Error, Result};
-use crate::model::affine::{Affine2, Map2};
-
-/// A map of the plane with a flat vector of real parameters and the vector–Jacobian
-/// products the splat's reverse pass needs (see the module docs).
-///
-/// Everything is `#[inline]`-friendly and monomorphised by the splatter: a map type is a
-/// type parameter of the hot loops, never a trait object.
-pub trait DiffMap2: Map2 + Clone {
-    /// The parameter count, when every map of the type has the same one (`Some(6)` for
-    /// [`Affine2`]); `None` when it depends on the map (a flame transform's variations).
-    /// It lets the backward scan index gradients with a compile-time stride; a type that
-    /// sets it must return the same number from [`DiffMap2::n_params`] (the scan falls back
-    /// to per-map offsets when they disagree).
-    const PARAMS: Option<usize> = None;
-
-    /// Number of parameters of this map.
-    fn n_params(&self) -> usize;
-
-    /// Writes the parameters into `out` (`out.len() == self.n_params()`).
-    fn write_params(&self, out: &mut [f64]);
-
-    /// Sets the parameters from `p` (`p.len() == self.n_params()`); everything that is not a
-    /// parameter (a reflection flag, which variations a flame transform has) is kept.
-    fn set_params(&mut self, p: &[f64]);
-
-    /// `(∂f/∂x)(x)ᵀ·λ`: the vector–Jacobian product with respect to the point.
-    fn vjp_point(&self, x: [f64; 2], lambda: [f64; 2]) -> [f64; 2];
-
-    /// Adds `(∂f/∂θ)(x)ᵀ·λ` to `grad` (`grad.len() == self.n_params()`).
-    fn vjp_params(&self, x: [f64; 2], lambda: [f64; 2], grad: &mut [f64]);
-
-    /// Both products at once, as the backward scan uses them: adds `(∂f/∂θ)ᵀ·λ` to `grad`
-    /// and returns `(∂f/∂x)ᵀ·λ`. Override it when the two share work (a non-linear map
-    /// evaluates its inner affine step once).
-    #[inline(always)]
-    fn vjp(&self, x: [f64; 2], lambda: [f64; 2], grad: &mut [f64]) -> [f64; 2] {
-        self.vjp_params(x, lambda, grad);
-        self.vjp_point(x, lambda)
-    }
-
-    /// The parameters as a vector.
-    fn params(&self) -> Vec<f64> {
-        let mut p = vec![0.0; self.n_params()];
-        self.write_params(&mut p);
-        p
-    }
-}
+use crate::model::affine::Affine2;
+use crate::model::map::{DiffMap, Map};
+// The former home of the map traits and the flat layout: code written against these paths
+// keeps compiling.
+pub use crate::model::map::{
+    DiffMap2, VjpCheck, flat_params, param_offsets, set_flat_params, vjp_check,
+};
 
 /// A map the paper's regulariser (singular values, offsets, conditioning) can act on: it
 /// names an affine map derived from its parameters and carries that derivation's chain rule.
@@ -84,126 +30,7 @@ pub trait AffinePart: DiffMap2 {
     fn affine_part_backward(&self, g: &Affine2, grad: &mut [f64]);
 }
 
-/// Where each map's parameters start in the flat layout, plus the total at the end
-/// (`n + 1` entries: map `i` owns `offsets[i]..offsets[i + 1]`).
-pub fn param_offsets<M: DiffMap2>(maps: &[M]) -> Vec<usize> {
-    let mut off = Vec::with_capacity(maps.len() + 1);
-    let mut acc = 0;
-    off.push(0);
-    for m in maps {
-        acc += m.n_params();
-        off.push(acc);
-    }
-    off
-}
-
-/// All parameters of `maps`, map after map.
-pub fn flat_params<M: DiffMap2>(maps: &[M]) -> Vec<f64> {
-    let off = param_offsets(maps);
-    let mut out = vec![0.0; off[maps.len()]];
-    for (i, m) in maps.iter().enumerate() {
-        m.write_params(&mut out[off[i]..off[i + 1]]);
-    }
-    out
-}
-
-/// Sets the parameters of `maps` from the flat layout; refuses a wrong length or a
-/// non-finite value (naming the map and parameter).
-pub fn set_flat_params<M: DiffMap2>(maps: &mut [M], flat: &[f64]) -> Result<()> {
-    let off = param_offsets(maps);
-    if flat.len() != off[maps.len()] {
-        return Err(Error::Shape(format!(
-            "{} parameters given for {} maps that have {} together",
-            flat.len(),
-            maps.len(),
-            off[maps.len()]
-        )));
-    }
-    check_finite_params(flat, &off)?;
-    for (i, m) in maps.iter_mut().enumerate() {
-        m.set_params(&flat[off[i]..off[i + 1]]);
-    }
-    Ok(())
-}
-
-/// Refuses the first non-finite parameter of a flat layout with offsets `off`.
-pub(crate) fn check_finite_params(flat: &[f64], off: &[usize]) -> Result<()> {
-    if let Some((j, v)) = flat.iter().enumerate().find(|(_, v)| !v.is_finite()) {
-        let i = off.partition_point(|&o| o <= j) - 1;
-        return Err(Error::NonFinite {
-            what: "maps".into(),
-            location: format!("map {i}, parameter {}", j - off[i]),
-            value: *v,
-        });
-    }
-    Ok(())
-}
-
-/// Largest discrepancies between a map's vjps and central finite differences of `λᵀf`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct VjpCheck {
-    /// `max |vjp_point − FD|` over the two coordinates.
-    pub point: f64,
-    /// `max |vjp_params − FD|` over the parameters.
-    pub params: f64,
-    /// `max |FD|` over all entries, to judge the errors against.
-    pub scale: f64,
-    /// `|vjp − (vjp_params, vjp_point)|`: the fused product agrees with the separate ones.
-    pub fused: f64,
-}
-
-/// Checks [`DiffMap2::vjp_point`], [`DiffMap2::vjp_params`] and [`DiffMap2::vjp`] at `x`
-/// against central differences of `θ, x ↦ λᵀf_θ(x)` with step `h`; f64 throughout, so with
-/// `h ≈ 1e-6` a correct smooth map shows errors around 1e-9 of [`VjpCheck::scale`].
-pub fn vjp_check<M: DiffMap2>(map: &M, x: [f64; 2], lambda: [f64; 2], h: f64) -> VjpCheck {
-    let dot = |m: &M, p: [f64; 2]| {
-        let y = m.apply(p);
-        lambda[0] * y[0] + lambda[1] * y[1]
-    };
-    let mut scale = 0.0f64;
-    let gx = map.vjp_point(x, lambda);
-    let mut point = 0.0f64;
-    for k in 0..2 {
-        let (mut up, mut down) = (x, x);
-        up[k] += h;
-        down[k] -= h;
-        let fd = (dot(map, up) - dot(map, down)) / (2.0 * h);
-        point = point.max((fd - gx[k]).abs());
-        scale = scale.max(fd.abs());
-    }
-    let theta = map.params();
-    let mut gp = vec![0.0; theta.len()];
-    map.vjp_params(x, lambda, &mut gp);
-    let mut params = 0.0f64;
-    for k in 0..theta.len() {
-        let bumped = |d: f64| {
-            let mut t = theta.clone();
-            t[k] += d;
-            let mut m = map.clone();
-            m.set_params(&t);
-            m
-        };
-        let fd = (dot(&bumped(h), x) - dot(&bumped(-h), x)) / (2.0 * h);
-        params = params.max((fd - gp[k]).abs());
-        scale = scale.max(fd.abs());
-    }
-    let mut gf = vec![0.0; theta.len()];
-    let gxf = map.vjp(x, lambda, &mut gf);
-    let fused = gf
-        .iter()
-        .zip(&gp)
-        .chain(gxf.iter().zip(&gx))
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0, f64::max);
-    VjpCheck {
-        point,
-        params,
-        scale,
-        fused,
-    }
-}
-
-impl DiffMap2 for Affine2 {
+impl DiffMap<2> for Affine2 {
     const PARAMS: Option<usize> = Some(6);
 
     #[inline(always)]
@@ -327,7 +154,7 @@ impl Similitude2 {
     }
 }
 
-impl Map2 for Similitude2 {
+impl Map<2> for Similitude2 {
     #[inline(always)]
     fn apply(&self, p: [f64; 2]) -> [f64; 2] {
         let z = self.rotate(self.flip(p));
@@ -335,7 +162,7 @@ impl Map2 for Similitude2 {
     }
 }
 
-impl DiffMap2 for Similitude2 {
+impl DiffMap<2> for Similitude2 {
     const PARAMS: Option<usize> = Some(4);
 
     #[inline(always)]

@@ -1,11 +1,13 @@
 //! IFS models: maps, their parameterisations, probabilities, code files, and the codes
 //! that come with the library (classic ones and random ones).
 //!
-//! - [`affine`]: 2-D affine maps (the renderers' map) and dimension-generic ones; the
-//!   [`Map2`] trait generators iterate, which flame transforms and segment maps will
-//!   implement too.
-//! - [`diff_map`]: [`DiffMap2`], the differentiable map the splatter's reverse pass needs
-//!   (vector–Jacobian products at a point), for [`Affine2`] and [`Similitude2`].
+//! - [`map`]: the map traits in any dimension — [`Map`], what generators iterate, and
+//!   [`DiffMap`], what a differentiable renderer's reverse pass needs (a flat parameter
+//!   vector, vector–Jacobian products at a point) — with [`Map2`]/[`DiffMap2`] their names in
+//!   the plane, the flat layout of a set of maps, and the finite-difference check.
+//! - [`affine`]: 2-D affine maps (the renderers' map) and dimension-generic ones.
+//! - [`diff_map`]: the plane's differentiable maps [`Affine2`] and [`Similitude2`], and
+//!   [`AffinePart`], the affine map the regulariser sees in a non-affine one.
 //! - [`param`]: raw vector θ ↔ maps, with the chain rule and projection.
 //! - [`similitude`]: `s·R·x + t` in any dimension (EM's family).
 //! - [`probs`]: uniform, ∝|det| with a floor, explicit.
@@ -24,6 +26,7 @@ pub mod code;
 pub mod diff_map;
 pub mod flame;
 pub mod library;
+pub mod map;
 pub mod map3;
 pub mod param;
 pub mod probs;
@@ -31,10 +34,11 @@ pub mod random;
 pub mod segment;
 pub mod similitude;
 
-pub use affine::{Affine2, AffineN, Map2};
+pub use affine::{Affine2, AffineN};
 #[allow(deprecated)] // the former name, kept for code written against it
 pub use code::{Framing, IfsCode, Window};
-pub use diff_map::{AffinePart, DiffMap2, Similitude2};
+pub use diff_map::{AffinePart, Similitude2};
+pub use map::{DiffMap, DiffMap2, Map, Map2};
 pub use param::{Naive, ParamKind, Parameterisation, Svd};
 pub use probs::ProbabilityRule;
 pub use similitude::Similitude;

@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::chaos::{ChaosGame, Points};
 use crate::error::{Error, Result};
-use crate::model::affine::Map2;
+use crate::model::Map2;
 use crate::model::code::Window;
 
 /// Fraction of the frame the attractor's longest side spans when fitted.

@@ -14,7 +14,7 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use ifslab::model::map3::{DiffMap3, SvdMap3, fern_3d, sierpinski_tetrahedron};
+use ifslab::model::map3::{DiffMap, SvdMap3, fern_3d, sierpinski_tetrahedron};
 use ifslab::render::Renderer;
 use ifslab::render::splat3d::{Lens, MultiViewConfig, MultiViewSplat, turntable};
 use ifslab_strategies::driver::Differentiable;

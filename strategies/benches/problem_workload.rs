@@ -22,7 +22,7 @@ use std::hint::black_box;
 
 use ifslab::loss::LossConfig;
 use ifslab::model::Svd;
-use ifslab::model::map3::{DiffMap3, SvdMap3, fern_3d, sierpinski_tetrahedron};
+use ifslab::model::map3::{DiffMap, SvdMap3, fern_3d, sierpinski_tetrahedron};
 use ifslab::render::Renderer;
 use ifslab::render::splat;
 use ifslab::render::splat3d::{Lens, MultiViewConfig, MultiViewSplat, turntable};

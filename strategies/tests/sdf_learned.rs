@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use ifslab::model::Map2;
+use ifslab::model::Map;
 use ifslab::model::segment::{Pattern, SegmentMap, builtin};
 use ifslab::render::sdf::{SdfRaster, SdfRenderConfig, SdfView};
 use ifslab_strategies::problems::sdf::{LearnedConfig, SdfConfig, SdfLossConfig, SdfProblem};

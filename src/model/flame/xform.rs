@@ -26,7 +26,6 @@ use rand::RngCore;
 
 use crate::error::{Error, Result};
 use crate::isa::{FmaIsa, IsaLevel, PortableIsa};
-use crate::model::affine::Map2;
 use crate::model::flame::scalar::{Dual, FlameScalar};
 use crate::model::flame::variation::{MAX_PARAMS, Variation, VariationKind, derive};
 use crate::model::flame::variations::{Pre, eval_detected, eval_on, pre_blur};
@@ -599,7 +598,7 @@ impl SmoothXform {
     }
 }
 
-impl Map2 for SmoothXform {
+impl crate::model::map::Map<2> for SmoothXform {
     fn apply(&self, p: [f64; 2]) -> [f64; 2] {
         self.0.apply(p, &mut NoRng).point
     }
@@ -608,7 +607,7 @@ impl Map2 for SmoothXform {
 /// A deterministic flame transform is a differentiable map of the plane: its θ is the
 /// transform's flat parameter vector ([`Xform::params`]), its products the exact
 /// forward-mode derivatives of the same formula code as the forward pass.
-impl crate::model::diff_map::DiffMap2 for SmoothXform {
+impl crate::model::map::DiffMap<2> for SmoothXform {
     fn n_params(&self) -> usize {
         self.0.n_params()
     }

@@ -2,10 +2,10 @@
 
 use nalgebra::{Matrix3, Vector3};
 
-use super::{DiffMap3, Map3};
 use crate::error::{Error, Result};
 use crate::model::AffineN;
 use crate::model::code::IfsCode;
+use crate::model::map::{DiffMap, Map};
 
 /// A 3-D affine map `x ↦ M·x + b`; its parameters are `M` row-major, then `b` (12).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -98,15 +98,23 @@ impl Affine3 {
     }
 }
 
-impl Map3 for Affine3 {
+impl Map<3> for Affine3 {
     #[inline(always)]
     fn apply(&self, p: [f64; 3]) -> [f64; 3] {
         let m = &self.m;
         std::array::from_fn(|r| m[(r, 0)] * p[0] + m[(r, 1)] * p[1] + m[(r, 2)] * p[2] + self.b[r])
     }
+
+    fn affine(&self) -> Option<([[f64; 3]; 3], [f64; 3])> {
+        let m = &self.m;
+        Some((
+            std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)])),
+            std::array::from_fn(|r| self.b[r]),
+        ))
+    }
 }
 
-impl DiffMap3 for Affine3 {
+impl DiffMap<3> for Affine3 {
     const PARAMS: Option<usize> = Some(12);
 
     #[inline(always)]

@@ -2,8 +2,9 @@
 
 use nalgebra::{Matrix3, Vector3};
 
+use super::Affine3;
 use super::rotation::rotation_jacobian;
-use super::{Affine3, DiffMap3, Map3};
+use crate::model::map::{DiffMap, Map};
 
 /// A similitude of space `x ↦ s·R(q)·F·x + t`, with `R(q)` the rotation of the quaternion
 /// `q = (w, x, y, z)` (any non-zero length) and `F` the mirror `z ↦ −z` when `reflect` is
@@ -86,7 +87,7 @@ fn mul_t(a: &Matrix3<f64>, l: [f64; 3]) -> [f64; 3] {
     std::array::from_fn(|c| a[(0, c)] * l[0] + a[(1, c)] * l[1] + a[(2, c)] * l[2])
 }
 
-impl Map3 for Similitude3 {
+impl Map<3> for Similitude3 {
     #[inline(always)]
     fn apply(&self, p: [f64; 3]) -> [f64; 3] {
         let z = mul(&self.r, self.flip(p));
@@ -94,7 +95,7 @@ impl Map3 for Similitude3 {
     }
 }
 
-impl DiffMap3 for Similitude3 {
+impl DiffMap<3> for Similitude3 {
     const PARAMS: Option<usize> = Some(8);
 
     #[inline(always)]

@@ -26,9 +26,10 @@
 
 use nalgebra::{Matrix3, Vector3};
 
+use super::Affine3;
 use super::rotation::{quaternion_from_rotation, rotation_jacobian};
-use super::{Affine3, DiffMap3, Map3};
 use crate::error::{Error, Result};
+use crate::model::map::{DiffMap, Map};
 
 /// Raw numbers per map.
 pub const SVD3_PARAMS: usize = 14;
@@ -201,7 +202,7 @@ impl SvdMap3 {
     }
 }
 
-impl Map3 for SvdMap3 {
+impl Map<3> for SvdMap3 {
     #[inline(always)]
     fn apply(&self, p: [f64; 3]) -> [f64; 3] {
         let m = &self.m;
@@ -209,7 +210,7 @@ impl Map3 for SvdMap3 {
     }
 }
 
-impl DiffMap3 for SvdMap3 {
+impl DiffMap<3> for SvdMap3 {
     const PARAMS: Option<usize> = Some(SVD3_PARAMS);
 
     #[inline(always)]

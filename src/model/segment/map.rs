@@ -11,9 +11,9 @@
 //! orientation-preserving (the paper names no reflection, so there is none: `arg w` is the
 //! rotation, `|w|` the scale). It is differentiable wherever `e₁ ≠ e₂`.
 
-use crate::model::affine::{Affine2, Map2};
-use crate::model::diff_map::{AffinePart, DiffMap2};
 use crate::model::segment::complex::{abs, acc, cmul, conj, div, mul, sub};
+use crate::model::{Affine2, Map};
+use crate::model::{AffinePart, DiffMap};
 
 /// A similitude of the plane without reflection, `z ↦ w·z + t` in complex notation:
 /// `x′ = w_re·x − w_im·y + t_x`, `y′ = w_im·x + w_re·y + t_y`.
@@ -104,7 +104,7 @@ impl SegmentMap {
     }
 }
 
-impl Map2 for SegmentMap {
+impl Map<2> for SegmentMap {
     #[inline(always)]
     fn apply(&self, p: [f64; 2]) -> [f64; 2] {
         let z = mul(self.w, p);
@@ -112,7 +112,7 @@ impl Map2 for SegmentMap {
     }
 }
 
-impl DiffMap2 for SegmentMap {
+impl DiffMap<2> for SegmentMap {
     const PARAMS: Option<usize> = Some(4);
 
     #[inline(always)]

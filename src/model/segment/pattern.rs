@@ -308,7 +308,7 @@ impl Pattern {
     /// A copy with every point mapped by `f` (framing a pattern into a window); the result is
     /// validated again.
     pub fn transformed(&self, f: &SegmentMap) -> Result<Pattern> {
-        use crate::model::affine::Map2;
+        use crate::model::map::Map;
         Pattern::new(
             self.name.clone(),
             self.points.iter().map(|&p| f.apply(p)).collect(),

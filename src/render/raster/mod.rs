@@ -39,8 +39,8 @@ use crate::budget::{MemoryEstimate, check_memory, check_rate};
 use crate::chaos::{LANES, MapSampler, PointSink, PointStream, WindowWords, WordSink};
 use crate::error::{Error, Result};
 use crate::isa::Isa;
-use crate::model::affine::Map2;
 use crate::model::code::Window;
+use crate::model::{Affine2, Map2};
 use crate::progress::Progress;
 use crate::render::view::{FIT_FILL, View, Zoom, fit_window, pilot_bbox, zoom_window};
 
@@ -602,7 +602,11 @@ fn deep_zoom_words<M: Map2>(
     if !cfg.deep_zoom || cfg.zoom.is_none() {
         return Ok(None);
     }
-    let Some(affine) = maps.iter().map(Map2::affine).collect::<Option<Vec<_>>>() else {
+    let affine = maps.iter().map(|m| {
+        m.affine()
+            .map(|([[a, b], [c, d]], [e, f])| Affine2::new(a, b, c, d, e, f))
+    });
+    let Some(affine) = affine.collect::<Option<Vec<_>>>() else {
         return Ok(None);
     };
     // A window that misses the attractor is drawn the plain way (an empty view), and so is

@@ -11,7 +11,7 @@
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::model::affine::Map2;
+use crate::model::map::Map;
 use crate::model::segment::SegmentMap;
 use crate::model::segment::complex::{abs, acc, add, cmul, sub};
 

@@ -23,7 +23,7 @@ use candle_core::{CpuStorage, CustomOp1, DType, Device, Layout, Shape, Tensor};
 
 use super::{SplatConfig, SplatTape, backward, forward_with_probabilities};
 use crate::model::affine::Affine2;
-use crate::model::diff_map::{DiffMap2, flat_params, param_offsets};
+use crate::model::map::{DiffMap2, flat_params, param_offsets};
 
 enum Tape {
     F32(SplatTape<f32>),

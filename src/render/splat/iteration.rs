@@ -33,7 +33,7 @@ use super::cuda;
 use super::{Splat, SplatConfig, SplatDevice};
 use crate::error::Result;
 use crate::loss::{LossBreakdown, Objective};
-use crate::model::diff_map::{AffinePart, DiffMap2};
+use crate::model::{AffinePart, DiffMap2};
 use crate::render::renderer::Renderer;
 
 /// Whether [`objective_and_grad`] takes the fused GPU route for this renderer, objective and

@@ -73,7 +73,7 @@ use crate::budget::MemoryEstimate;
 use crate::chaos::ChaosGame;
 use crate::error::{Error, Result};
 use crate::isa::Isa;
-use crate::model::diff_map::{DiffMap2, check_finite_params, flat_params, param_offsets};
+use crate::model::map::{DiffMap2, check_finite_params, flat_params, param_offsets};
 
 /// Where the splat kernel runs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]

@@ -6,7 +6,7 @@ use std::marker::PhantomData;
 use super::{SplatConfig, SplatReal, SplatTape, backward, forward_with_probabilities};
 use crate::chaos::mix_seed;
 use crate::error::Result;
-use crate::model::diff_map::DiffMap2;
+use crate::model::map::DiffMap2;
 use crate::render::renderer::{Draws, Planes, Renderer};
 
 /// The fused splat of maps of type `M` into an image of `T` (f32 or f64), with the chaos

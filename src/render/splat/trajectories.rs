@@ -15,8 +15,8 @@ use rayon::prelude::*;
 use crate::chaos::{ChaosGame, MapSampler, is_bounded, trajectory_rng};
 use crate::error::{Error, Result};
 use crate::isa::Isa;
-use crate::model::affine::Map2;
-use crate::model::diff_map::{DiffMap2, param_offsets};
+use crate::model::Map2;
+use crate::model::map::{DiffMap2, param_offsets};
 
 /// Trajectories reduced together in the reverse pass; fixed so sums have a fixed order.
 const GROUP: usize = 16;
@@ -170,7 +170,7 @@ impl TrajectoryTape {
     /// (same layout as [`Self::kept_points`]).
     ///
     /// Per step `k` (map `i = i_{k−1}`, state `x = s_{k−1}`): `λ += ∂L/∂s_k` if `s_k` is kept,
-    /// then `∂L/∂θ_i += (∂f_i/∂θ)(x)ᵀλ` and `λ ← (∂f_i/∂x)(x)ᵀλ` ([`DiffMap2::vjp`]).
+    /// then `∂L/∂θ_i += (∂f_i/∂θ)(x)ᵀλ` and `λ ← (∂f_i/∂x)(x)ᵀλ` ([`DiffMap::vjp`](crate::model::DiffMap::vjp)).
     pub fn backward<M: DiffMap2>(&self, maps: &[M], grad_points: &[[f64; 2]]) -> Vec<f64> {
         let off = param_offsets(maps);
         let total = off[maps.len()];

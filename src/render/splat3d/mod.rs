@@ -45,7 +45,7 @@ use crate::budget::MemoryEstimate;
 use crate::chaos::{ChaosGame, Tape3, mix_seed};
 use crate::error::{Error, Result};
 use crate::isa::Isa;
-use crate::model::diff_map::check_finite_params;
+use crate::model::map::check_finite_params;
 use crate::model::map3::{DiffMap3, flat_params, param_offsets};
 use crate::render::renderer::{Draws, Planes, Renderer};
 use crate::render::splat::kernel::{self, Blend, SplatGrid, SplatReal, SplatState};

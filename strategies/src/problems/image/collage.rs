@@ -645,7 +645,7 @@ fn to_pixel_frame(map: &Affine2, size: usize) -> PixelMap {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use ifslab::model::Map2;
+    use ifslab::model::Map;
 
     /// The frame conversion agrees with mapping pixel centres through both coordinates.
     #[test]

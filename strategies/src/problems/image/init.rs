@@ -423,7 +423,7 @@ pub fn initial_theta(
 mod tests {
     use super::*;
     use crate::problems::image::collage::collage_maps;
-    use ifslab::model::Map2;
+    use ifslab::model::Map;
 
     /// `n` points of `maps`' attractor by a chaos game of the test's own (not the one the
     /// method samples with), maps ∝ max(|det|, `floor`) (the area measure, as a coverage

@@ -37,7 +37,7 @@ pub trait ImageModel: Send + Sync + 'static {
     fn decode(&self, theta: &[f64]) -> Result<Vec<Self::Map>>;
 
     /// The chain rule: the gradient with respect to θ from the gradient with respect to the
-    /// maps' parameters (flat, map after map, in [`DiffMap2::write_params`] order).
+    /// maps' parameters (flat, map after map, in [`DiffMap::write_params`](ifslab::model::DiffMap::write_params) order).
     fn backward(&self, theta: &[f64], grad_params: &[f64]) -> Result<Vec<f64>>;
 
     /// Brings θ back into the model's domain after a step (default: nothing to do).
@@ -475,7 +475,7 @@ pub fn find_model(name: &str) -> Result<&'static ModelEntry> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use ifslab::model::Map2;
+    use ifslab::model::Map;
 
     #[test]
     fn similitude_encoding_keeps_similitudes_and_projects_the_rest() {

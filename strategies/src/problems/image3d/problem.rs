@@ -14,7 +14,7 @@
 use std::borrow::Cow;
 
 use ifslab::loss::{ImageLoss, MsMse};
-use ifslab::model::map3::{DiffMap3, SVD3_PARAMS, SvdMap3};
+use ifslab::model::map3::{DiffMap, SVD3_PARAMS, SvdMap3};
 use ifslab::render::splat::kernel::SplatReal;
 use ifslab::render::splat3d::{Camera, MultiViewConfig, MultiViewSplat};
 

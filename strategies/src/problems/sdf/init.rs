@@ -212,7 +212,7 @@ pub fn initial_points(
                         let s = ((p[0] - a[0]) * e[0] + (p[1] - a[1]) * e[1]) / e2;
                         [l0[0] + s * (l1[0] - l0[0]), l0[1] + s * (l1[1] - l0[1])]
                     }
-                    _ => ifslab::model::Map2::apply(&map, *p),
+                    _ => ifslab::model::Map::apply(&map, *p),
                 })
                 .collect()
         }
