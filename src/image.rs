@@ -1,6 +1,10 @@
-//! The one image type of the stack: `channels` planes of `height × width` `f32` values in
-//! [0, 1], plane after plane (channel-major, the layout of a candle `(C, H, W)` tensor, so an
-//! image goes to the losses and comes back without reordering).
+//! The one image type of the stack: `channels` planes of `height × width` values in [0, 1],
+//! plane after plane (channel-major, the layout of a candle `(C, H, W)` tensor, so an image
+//! goes to the losses and comes back without reordering).
+//!
+//! The values are `f32` by default: pictures, renders and every target a problem fits.
+//! `Image<f64>` is the same type at the precision of the SDF raster, whose gradients are
+//! checked against f64 finite differences; [`Image::widened`] takes a picture there exactly.
 //!
 //! One channel is grey (renders of IFS attractors, framed targets: the fast path every loss
 //! and renderer keeps); three are RGB and four RGBA (flames). Files are read and written
@@ -15,9 +19,9 @@ use image::{ImageBuffer, ImageFormat, Luma, Rgb, Rgba};
 use crate::error::{Error, Result};
 use crate::io::write_atomic;
 
-/// A planar `f32` image (see the module docs).
+/// A planar image of `T` values, `f32` unless said otherwise (see the module docs).
 #[derive(Clone, Debug, PartialEq)]
-pub struct Image {
+pub struct Image<T = f32> {
     /// Width in pixels.
     pub width: u32,
     /// Height in pixels.
@@ -25,7 +29,7 @@ pub struct Image {
     /// Planes: 1 grey, 3 RGB, 4 RGBA.
     pub channels: u32,
     /// `channels × height × width` values, plane after plane, each plane row-major.
-    pub values: Vec<f32>,
+    pub values: Vec<T>,
 }
 
 /// Rec. 709 luma of linear-free sRGB values, as the grey loaders use.
@@ -33,9 +37,9 @@ fn luma(r: f32, g: f32, b: f32) -> f32 {
     0.2126 * r + 0.7152 * g + 0.0722 * b
 }
 
-impl Image {
+impl<T: Copy> Image<T> {
     /// An image from its planes; an error when the value count does not match.
-    pub fn new(width: u32, height: u32, channels: u32, values: Vec<f32>) -> Result<Self> {
+    pub fn new(width: u32, height: u32, channels: u32, values: Vec<T>) -> Result<Self> {
         if width == 0 || height == 0 || channels == 0 {
             return Err(Error::Empty(format!(
                 "a {width}×{height} image with {channels} channels has no pixels"
@@ -57,8 +61,45 @@ impl Image {
     }
 
     /// A grey image from row-major values.
-    pub fn grey(width: u32, height: u32, values: Vec<f32>) -> Result<Self> {
+    pub fn grey(width: u32, height: u32, values: Vec<T>) -> Result<Self> {
         Image::new(width, height, 1, values)
+    }
+
+    /// A grey `side × side` image from row-major values (a framed target).
+    pub fn square(side: usize, values: Vec<T>) -> Result<Self> {
+        let side = u32::try_from(side)
+            .map_err(|_| Error::Shape(format!("a square image of side {side} is too large")))?;
+        Image::grey(side, side, values)
+    }
+
+    /// Refuses an image that is not `channels` planes of `width × height`, saying what it
+    /// is (`what`: "the target", …) and what was expected of it.
+    pub fn expect_shape(
+        &self,
+        what: &str,
+        channels: u32,
+        width: usize,
+        height: usize,
+    ) -> Result<()> {
+        if self.channels == channels
+            && self.width as usize == width
+            && self.height as usize == height
+        {
+            return Ok(());
+        }
+        let planes = |c: u32| match c {
+            1 => "grey".to_string(),
+            3 => "RGB".to_string(),
+            4 => "RGBA".to_string(),
+            c => format!("{c}-plane"),
+        };
+        Err(Error::Shape(format!(
+            "{what} is a {}×{} {} image; {width}×{height} {} is needed",
+            self.width,
+            self.height,
+            planes(self.channels),
+            planes(channels)
+        )))
     }
 
     /// Pixels per plane.
@@ -67,9 +108,21 @@ impl Image {
     }
 
     /// Plane `c` (row-major).
-    pub fn plane(&self, c: usize) -> &[f32] {
+    pub fn plane(&self, c: usize) -> &[T] {
         let n = self.pixels();
         &self.values[c * n..(c + 1) * n]
+    }
+}
+
+impl Image {
+    /// The same image in f64, exactly (every `f32` is an `f64`).
+    pub fn widened(&self) -> Image<f64> {
+        Image {
+            width: self.width,
+            height: self.height,
+            channels: self.channels,
+            values: self.values.iter().map(|&v| v as f64).collect(),
+        }
     }
 
     /// The image in grey: itself when it has one channel, else the Rec. 709 luma of its
@@ -315,9 +368,41 @@ mod tests {
     #[test]
     fn bad_shapes_are_refused() {
         assert!(Image::new(2, 2, 3, vec![0.0; 11]).is_err());
-        assert!(Image::new(0, 2, 1, vec![]).is_err());
+        assert!(Image::<f32>::new(0, 2, 1, vec![]).is_err());
         let two = Image::new(1, 1, 2, vec![0.0, 1.0]).unwrap();
         let e = two.encode_png().unwrap_err();
         assert!(e.to_string().contains("1, 3 or 4 channels"), "{e}");
+    }
+
+    #[test]
+    fn shapes_are_checked_by_name_and_pictures_widen_exactly() {
+        let img = rgb();
+        img.expect_shape("the target", 3, 5, 3).unwrap();
+        let e = img
+            .expect_shape("the target", 1, 5, 3)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("the target is a 5×3 RGB image; 5×3 grey is needed"),
+            "{e}"
+        );
+        let e = img
+            .expect_shape("the views", 8, 4, 4)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("4×4 8-plane is needed"), "{e}");
+        let wide = img.widened();
+        assert_eq!((wide.width, wide.height, wide.channels), (5, 3, 3));
+        assert!(
+            wide.values
+                .iter()
+                .zip(&img.values)
+                .all(|(&a, &b)| a == b as f64)
+        );
+        assert!(Image::square(4, vec![0.5f64; 15]).is_err());
+        assert_eq!(
+            Image::square(4, vec![0.5f64; 16]).unwrap().plane(0).len(),
+            16
+        );
     }
 }

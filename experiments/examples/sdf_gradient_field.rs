@@ -49,7 +49,7 @@ fn main() -> anyhow::Result<()> {
             cutoff: None,
         },
     )?
-    .image(sigma);
+    .to_image(sigma);
     let theta0 = truth.flat_points();
     let opt = (theta0[4], theta0[5]);
     let step = 2.0 * half / (grid - 1) as f64;

@@ -80,6 +80,6 @@ pub fn render<'py>(
     }
     let stats = serde_json::to_string(&raster.stats).py()?;
     let (w, h) = (raster.width as usize, raster.height as usize);
-    let image = raster.values.into_pyarray(py).reshape([h, w])?;
+    let image = raster.image.values.into_pyarray(py).reshape([h, w])?;
     Ok((image, stats))
 }

@@ -14,6 +14,7 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use ifslab::image::Image;
 use ifslab::model::map3::{DiffMap, SvdMap3, fern_3d, sierpinski_tetrahedron};
 use ifslab::render::Renderer;
 use ifslab::render::splat3d::{Lens, MultiViewConfig, MultiViewSplat, turntable};
@@ -43,6 +44,8 @@ fn bench_image3d(c: &mut Criterion) {
         .forward(&truth, &99)
         .unwrap()
         .0;
+    let n = cameras.len() as u32;
+    let target = Image::new(SIDE as u32, SIDE as u32, n, target).unwrap();
     let views = Views::new(cameras.clone(), target).unwrap();
     let (fern, _) = fern_3d();
     let maps = SvdMap3::from_code(&fern, 1e-6).unwrap();
@@ -77,7 +80,7 @@ fn bench_image3d(c: &mut Criterion) {
     let (image, tape) = splat.forward(&maps, &1).unwrap();
     let grad: Vec<f32> = image
         .iter()
-        .zip(&views.planes)
+        .zip(&views.image.values)
         .map(|(a, t)| a - t)
         .collect();
     g.bench_function("backward", |b| {

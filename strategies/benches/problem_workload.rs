@@ -20,6 +20,7 @@
 
 use std::hint::black_box;
 
+use ifslab::image::Image;
 use ifslab::loss::LossConfig;
 use ifslab::model::Svd;
 use ifslab::model::map3::{DiffMap, SvdMap3, fern_3d, sierpinski_tetrahedron};
@@ -71,6 +72,7 @@ fn image() -> (Box<dyn Differentiable>, Vec<f64>) {
         lpips_weight: 0.0,
         ..LossConfig::default()
     };
+    let target = Image::grey(cfg.width as u32, cfg.height as u32, target).expect("a target");
     let problem = ImageProblem::new(Box::new(AffineModel(Box::new(p))), cfg, loss, target, 7)
         .expect("a problem");
     (Box::new(problem), theta)
@@ -87,6 +89,7 @@ fn sdf() -> (Box<dyn Differentiable>, Vec<f64>) {
     } = koch_sdf_fixture(256, 3);
     assert_eq!(target.len(), side * side);
     let theta = current.flat_points();
+    let target = Image::grey(side as u32, side as u32, target).expect("a target");
     let problem = SdfProblem::new(
         current,
         target,
@@ -102,6 +105,8 @@ fn sdf() -> (Box<dyn Differentiable>, Vec<f64>) {
 fn flame() -> (Box<dyn Differentiable>, Vec<f64>) {
     let (st, cfg, target) = learnable_flame_fixture(&eight_generators(), workload_flame_config());
     let theta = st.params();
+    let side = cfg.size as u32;
+    let target = Image::new(side, side, 3, target).expect("a target");
     let problem = FlameProblem::new(
         st,
         cfg,
@@ -133,6 +138,8 @@ fn image3d() -> (Box<dyn Differentiable>, Vec<f64>) {
         .forward(&truth, &99)
         .expect("forward")
         .0;
+    let n = cameras.len() as u32;
+    let target = Image::new(side as u32, side as u32, n, target).expect("a target");
     let views = Views::new(cameras, target).expect("views");
     let maps = SvdMap3::from_code(&fern_3d().0, 1e-6).expect("maps");
     let theta: Vec<f64> = maps.iter().flat_map(|m| m.params()).collect();

@@ -10,6 +10,7 @@
 
 use std::time::Instant;
 
+use ifslab::image::Image;
 use ifslab::model::segment::Pattern;
 use ifslab_strategies::optim::adam::AdamConfig;
 use ifslab_strategies::problems::image::StrategyConfig;
@@ -68,6 +69,7 @@ fn main() {
     let n = truth.points().len();
     let truth_theta = truth.flat_points();
     let target = render(&truth);
+    let picture = Image::square(SIZE, target.clone()).expect("a target");
     // (name, bias, noise, τ start, τ end, scale barrier weight)
     let settings = [
         ("uniform prior, τ 1", 0.0, 1.0, 1.0, 1.0, 0.0),
@@ -130,7 +132,7 @@ fn main() {
             });
             cfg.loss.scale_barrier = barrier;
             let t = Instant::now();
-            match run_sdf(&cfg, target.clone(), None, dir.path(), false, vec![]) {
+            match run_sdf(&cfg, picture.clone(), None, dir.path(), false, vec![]) {
                 Err(e) => {
                     failed += 1;
                     let msg = e.to_string().replace(',', ";");
@@ -139,7 +141,7 @@ fn main() {
                 Ok(out) => {
                     let secs = t.elapsed().as_secs_f64();
                     let problem =
-                        ifslab_strategies::problems::sdf::sdf_problem(&cfg, target.clone(), None)
+                        ifslab_strategies::problems::sdf::sdf_problem(&cfg, picture.clone(), None)
                             .unwrap();
                     let (fit, ok_assign) = match problem.pattern_at(&out.theta) {
                         Ok(fit) => {

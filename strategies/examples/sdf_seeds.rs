@@ -19,6 +19,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use ifslab::image::Image;
 use ifslab_strategies::optim::adam::AdamConfig;
 use ifslab_strategies::problems::image::StrategyConfig;
 use ifslab_strategies::problems::sdf::{
@@ -114,6 +115,7 @@ fn main() {
     let truth = koch_truth();
     let truth_theta = truth.flat_points();
     let target = render(&truth, args.size, args.depth, sigma);
+    let picture = Image::square(args.size, target.clone()).expect("a target");
     println!("jitter,weight,seed,error,iou,converged,seconds,start_crossing,end_crossing");
     let mut summary = Vec::new();
     for &jitter in &args.jitters {
@@ -145,7 +147,7 @@ fn main() {
                     ..AdamConfig::default()
                 });
                 let t = Instant::now();
-                let out = run_sdf(&cfg, target.clone(), None, dir.path(), false, vec![]).unwrap();
+                let out = run_sdf(&cfg, picture.clone(), None, dir.path(), false, vec![]).unwrap();
                 let secs = t.elapsed().as_secs_f64();
                 let fit = truth.with_flat_points(&out.theta).unwrap();
                 let img = render(&fit, args.size, args.depth, sigma);

@@ -18,6 +18,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use ifslab::image::Image;
 use ifslab::model::segment::builtin;
 use ifslab::render::sdf::SdfView;
 use ifslab_strategies::optim::adam::AdamConfig;
@@ -99,6 +100,7 @@ fn square(size: usize, m: f64) -> Vec<f64> {
 fn main() {
     let args = parse_args();
     let target = square(args.size, args.margin);
+    let picture = Image::square(args.size, target.clone()).expect("a target");
     let koch = builtin("koch").unwrap();
     println!("seed,iou,loss,ratio_min,ratio_max,seconds");
     let mut tiles: Vec<Vec<f64>> = Vec::new();
@@ -127,7 +129,7 @@ fn main() {
             ..AdamConfig::default()
         });
         let t = Instant::now();
-        let out = match run_sdf(&cfg, target.clone(), None, dir.path(), false, vec![]) {
+        let out = match run_sdf(&cfg, picture.clone(), None, dir.path(), false, vec![]) {
             Ok(o) => o,
             Err(e) => {
                 println!("{seed},,,,,{:.2} # {e}", t.elapsed().as_secs_f64());

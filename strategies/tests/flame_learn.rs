@@ -168,7 +168,8 @@ fn bad_input_is_answered_clearly() {
         .unwrap();
     let (t, note) = load_rgb_target(&grey, 10, [1.0; 3]).unwrap();
     assert!(note.unwrap().contains("greyscale"));
-    assert_eq!(t[0], t[100]);
+    assert_eq!((t.channels, t.width, t.height), (3, 10, 10));
+    assert_eq!(t.values[0], t.values[100]);
     let rgba = dir.path().join("rgba.png");
     image::RgbaImage::from_fn(20, 20, |_, _| image::Rgba([255, 0, 0, 0]))
         .save(&rgba)
@@ -176,7 +177,7 @@ fn bad_input_is_answered_clearly() {
     let (t, note) = load_rgb_target(&rgba, 10, [0.0, 0.0, 1.0]).unwrap();
     assert!(note.unwrap().contains("alpha"));
     assert_eq!(
-        (t[0], t[200]),
+        (t.values[0], t.values[200]),
         (0.0, 1.0),
         "transparent pixels take the background"
     );
@@ -186,7 +187,7 @@ fn bad_input_is_answered_clearly() {
     auto.sampler.size = 10;
     auto.background = BackgroundConfig::Named("auto".into());
     assert_eq!(
-        auto.background(&t).unwrap(),
+        auto.background(&t.values).unwrap(),
         ifslab::model::flame::learnable::Background::Fixed([0.0, 0.0, 1.0])
     );
     // A file that is not an image.

@@ -5,6 +5,7 @@
 use std::path::Path;
 
 use ifslab::chaos::ChaosGame;
+use ifslab::image::Image;
 use ifslab::loss::MsMse;
 use ifslab::model::map3::{SvdMap3, flat_params, sierpinski_tetrahedron};
 use ifslab::render::splat3d::{Camera, Lens, MultiViewConfig, turntable};
@@ -189,6 +190,7 @@ fn the_visual_hull_of_a_ball_is_a_ball() {
         })
         .collect();
     let planes: Vec<f32> = (0..cams.len()).flat_map(|_| disc.iter().copied()).collect();
+    let planes = Image::new(side as u32, side as u32, cams.len() as u32, planes).unwrap();
     let views = Views::new(cams.clone(), planes).unwrap();
     let cfg = HullConfig {
         resolution: 48,
@@ -247,7 +249,7 @@ fn tetra_views(dir: &Path, side: usize) -> TurntableFile {
     };
     let cams = spec.cameras(side, side).unwrap();
     let planes = render_code(&sierpinski_tetrahedron(), &cams, &small_render(), None, 1).unwrap();
-    write_views(dir, &spec, side, side, &planes).unwrap();
+    write_views(dir, &spec, &planes).unwrap();
     spec
 }
 
@@ -263,11 +265,12 @@ fn written_views_read_back() {
     assert_eq!(views.cameras, spec.cameras(side, side).unwrap());
     let cams = spec.cameras(side, side).unwrap();
     let planes = render_code(&sierpinski_tetrahedron(), &cams, &small_render(), None, 1).unwrap();
-    let ink = planes.iter().cloned().fold(0.0f32, f32::max);
+    let ink = planes.values.iter().cloned().fold(0.0f32, f32::max);
     let worst = views
-        .planes
+        .image
+        .values
         .iter()
-        .zip(&planes)
+        .zip(&planes.values)
         .map(|(a, b)| (a - b / ink).abs())
         .fold(0.0f32, f32::max);
     assert!(worst < 0.02, "read back off by {worst}");
@@ -397,7 +400,7 @@ fn an_empty_hull_is_refused() {
     let cams = small_cameras(16, 16);
     let mut planes = vec![0.0f32; 3 * 256];
     planes[0] = 1.0; // one inked corner pixel in the first view only
-    let views = Views::new(cams, planes).unwrap();
+    let views = Views::new(cams, Image::new(16, 16, 3, planes).unwrap()).unwrap();
     let e = visual_hull(&views, &HullConfig::default())
         .unwrap_err()
         .to_string();
@@ -419,7 +422,7 @@ fn held_out_views_are_spread_and_checked() {
     )
     .unwrap();
     let planes: Vec<f32> = (0..8 * w * h).map(|i| (i / (w * h)) as f32 / 8.0).collect();
-    let views = Views::new(cams, planes).unwrap();
+    let views = Views::new(cams, Image::new(w as u32, h as u32, 8, planes).unwrap()).unwrap();
     let (fit, held) = views.hold_out(2).unwrap();
     assert_eq!(held, vec![2, 6]);
     assert_eq!(fit, vec![0, 1, 3, 4, 5, 7]);

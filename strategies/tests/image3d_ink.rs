@@ -8,6 +8,7 @@
 //! attractor ends nearer the truth than both that fit and the hull + EM baseline.
 
 use ifslab::chaos::{ChaosGame, points3};
+use ifslab::image::Image;
 use ifslab::metrics3d::voxel_iou;
 use ifslab::model::map3::Affine3;
 use ifslab::progress::Silent;
@@ -105,6 +106,8 @@ fn the_ink_guard_keeps_a_fit_from_shrinking() {
         .iter()
         .flat_map(|c| crisp_view(&points, c))
         .collect();
+    let n = cameras.len() as u32;
+    let planes = Image::new(SIDE as u32, SIDE as u32, n, planes).unwrap();
     let views = Views::new(cameras, planes).unwrap();
     let truth_points = attractor(&truth, None, 1).unwrap();
     let fit = |ink: f64| {

@@ -1,5 +1,6 @@
 //! End-to-end image inversion: the strategies must actually recover fractals from renders.
 
+use ifslab::image::Image;
 use ifslab::loss::LossConfig;
 use ifslab::metrics::paper_metrics;
 use ifslab::model::ParamKind;
@@ -10,7 +11,7 @@ use ifslab_strategies::problems::image::config::GeneratorConfig;
 use ifslab_strategies::problems::image::config::{ModelConfig, RendererConfig, TargetConfig};
 use ifslab_strategies::problems::image::{InversionConfig, StrategyConfig, run_inversion};
 
-fn target(code: &str, size: usize) -> Vec<f32> {
+fn target(code: &str, size: usize) -> Image {
     let c = library::builtin(code).unwrap();
     let cfg = RenderConfig {
         width: size as u32,
@@ -26,7 +27,7 @@ fn target(code: &str, size: usize) -> Vec<f32> {
         None,
     )
     .unwrap()
-    .values
+    .image
 }
 
 fn iou_of(maps: &[ifslab::model::Affine2], t: &[f32], size: usize) -> f64 {
@@ -101,11 +102,11 @@ fn adam_on_the_naive_parameterisation_recovers_a_perturbed_code() {
     let dir = tempfile::tempdir().unwrap();
     let model = cfg.model.build().unwrap();
     let start =
-        ifslab_strategies::problems::image::initial_theta(&cfg, model.as_ref(), &t).unwrap();
+        ifslab_strategies::problems::image::initial_theta(&cfg, model.as_ref(), &t.values).unwrap();
     let start_maps = model.affine_maps(&start).unwrap();
-    let before = iou_of(&start_maps, &t, size);
+    let before = iou_of(&start_maps, &t.values, size);
     let out = run_inversion(&cfg, t.clone(), dir.path(), false, vec![]).unwrap();
-    let after = iou_of(&out.maps, &t, size);
+    let after = iou_of(&out.maps, &t.values, size);
     eprintln!("IoU before {before:.3}, after {after:.3}");
     assert!(
         after > 0.8 && after > before + 0.1,
@@ -140,12 +141,13 @@ fn adam_on_similitudes_recovers_a_perturbed_code() {
         };
         let model = cfg.model.build().unwrap();
         let start =
-            ifslab_strategies::problems::image::initial_theta(&cfg, model.as_ref(), &t).unwrap();
+            ifslab_strategies::problems::image::initial_theta(&cfg, model.as_ref(), &t.values)
+                .unwrap();
         assert_eq!(start.len(), 12, "4 parameters per similitude");
-        let before = iou_of(&model.affine_maps(&start).unwrap(), &t, size);
+        let before = iou_of(&model.affine_maps(&start).unwrap(), &t.values, size);
         let dir = tempfile::tempdir().unwrap();
         let out = run_inversion(&cfg, t.clone(), dir.path(), false, vec![]).unwrap();
-        let after = iou_of(&out.maps, &t, size);
+        let after = iou_of(&out.maps, &t.values, size);
         eprintln!("seed {seed}: IoU before {before:.3}, after {after:.3}");
         assert!(
             after > 0.9 && after > before + 0.1,
@@ -195,11 +197,11 @@ fn em_then_hybrid_on(
     cfg.renderer.device = device;
     let model = cfg.model.build().unwrap();
     let start =
-        ifslab_strategies::problems::image::initial_theta(&cfg, model.as_ref(), &t).unwrap();
-    let em_only = iou_of(&model.affine_maps(&start).unwrap(), &t, size);
+        ifslab_strategies::problems::image::initial_theta(&cfg, model.as_ref(), &t.values).unwrap();
+    let em_only = iou_of(&model.affine_maps(&start).unwrap(), &t.values, size);
     let dir = tempfile::tempdir().unwrap();
     let out = run_inversion(&cfg, t.clone(), dir.path(), false, vec![]).unwrap();
-    let iou = iou_of(&out.maps, &t, size);
+    let iou = iou_of(&out.maps, &t.values, size);
     eprintln!("{code}, seed {seed}: IoU of the EM start {em_only:.3}, after the hybrid {iou:.3}");
     (em_only, iou)
 }
@@ -552,10 +554,11 @@ fn the_value_only_baselines_improve_a_perturbed_code() {
         let dir = tempfile::tempdir().unwrap();
         let model = cfg.model.build().unwrap();
         let start =
-            ifslab_strategies::problems::image::initial_theta(&cfg, model.as_ref(), &t).unwrap();
-        let before = iou_of(&model.affine_maps(&start).unwrap(), &t, size);
+            ifslab_strategies::problems::image::initial_theta(&cfg, model.as_ref(), &t.values)
+                .unwrap();
+        let before = iou_of(&model.affine_maps(&start).unwrap(), &t.values, size);
         let out = run_inversion(&cfg, t.clone(), dir.path(), false, vec![]).unwrap();
-        let after = iou_of(&out.maps, &t, size);
+        let after = iou_of(&out.maps, &t.values, size);
         let log = std::fs::read_to_string(&out.log).unwrap();
         let evals = log.lines().last().unwrap().to_string();
         eprintln!("{name}: IoU before {before:.3}, after {after:.3}; last log line {evals}");
@@ -599,7 +602,7 @@ fn a_run_that_wanders_off_returns_the_best_code_it_saw() {
         s.start.unwrap() < s.best.unwrap() && s.best.unwrap() < s.last,
         "{s:?}"
     );
-    let iou = iou_of(&out.maps, &t, size);
+    let iou = iou_of(&out.maps, &t.values, size);
     assert!(iou > 0.6, "IoU of the returned code {iou:.3}");
 }
 
@@ -624,7 +627,7 @@ fn the_learning_fractals_recipe_learns_a_target() {
     let dir = tempfile::tempdir().unwrap();
     let model = cfg.model.build().unwrap();
     let start =
-        ifslab_strategies::problems::image::initial_theta(&cfg, model.as_ref(), &t).unwrap();
+        ifslab_strategies::problems::image::initial_theta(&cfg, model.as_ref(), &t.values).unwrap();
     assert_eq!(
         start.len(),
         3 * 8,
@@ -644,8 +647,8 @@ fn the_learning_fractals_recipe_learns_a_target() {
     let first: f64 = rows[..10].iter().map(|r| r[1]).sum::<f64>() / 10.0;
     let last: f64 = rows[rows.len() - 10..].iter().map(|r| r[1]).sum::<f64>() / 10.0;
     let (before, after) = (
-        iou_of(&model.affine_maps(&start).unwrap(), &t, size),
-        iou_of(&out.maps, &t, size),
+        iou_of(&model.affine_maps(&start).unwrap(), &t.values, size),
+        iou_of(&out.maps, &t.values, size),
     );
     eprintln!("MSE {first:.4} → {last:.4}, IoU {before:.3} → {after:.3}");
     assert!(last < 0.85 * first, "MSE {first:.4} → {last:.4}");

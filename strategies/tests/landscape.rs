@@ -2,6 +2,7 @@
 //! and bad requests are refused.
 
 use ifslab::chaos::ChaosGame;
+use ifslab::image::Image;
 use ifslab::loss::LossConfig;
 use ifslab::model::{ParamKind, library};
 use ifslab::render::splat::{self, SplatConfig};
@@ -26,6 +27,7 @@ fn problem(size: usize) -> (ImageProblem, Vec<f64>) {
     };
     // The target: the true code through the same renderer, on other trajectories.
     let target = splat::forward::<f32>(&splat, &maps, 12345).unwrap().0;
+    let target = Image::square(size, target).unwrap();
     let loss = LossConfig {
         lpips_weight: 0.0,
         ..LossConfig::default()

@@ -5,6 +5,7 @@
 //! iterations here, so a redraw is among the pinned iterations.
 
 use ifslab::chaos::ChaosGame;
+use ifslab::image::Image;
 use ifslab::loss::LossConfig;
 use ifslab::model::Svd;
 use ifslab::model::flame::VariationKind as V;
@@ -56,6 +57,7 @@ fn image() -> (ImageProblem, Vec<f64>) {
         lpips_weight: 0.0,
         ..LossConfig::default()
     };
+    let target = Image::grey(cfg.width as u32, cfg.height as u32, target).expect("a target");
     let problem = ImageProblem::new(Box::new(AffineModel(Box::new(p))), cfg, loss, target, 7)
         .expect("a problem");
     (problem, theta)
@@ -88,6 +90,7 @@ fn sdf_problem_keeps_its_bits() {
         ..
     } = koch_sdf_fixture(64, 2);
     let theta = current.flat_points();
+    let target = Image::square(view.width, target).expect("a target");
     let problem = SdfProblem::new(
         current,
         target,
@@ -115,6 +118,8 @@ fn flame_problem_keeps_its_bits() {
         },
     );
     let theta = st.params();
+    let side = cfg.size as u32;
+    let target = Image::new(side, side, 3, target).expect("a target");
     let problem = FlameProblem::new(
         st,
         cfg,

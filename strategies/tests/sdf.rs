@@ -5,6 +5,7 @@
 
 use std::path::Path;
 
+use ifslab::image::Image;
 use ifslab::model::segment::{Pattern, SegmentMap, builtin};
 use ifslab::render::sdf::{SdfRaster, SdfRenderConfig, SdfView};
 use ifslab_strategies::driver::Differentiable;
@@ -21,12 +22,12 @@ fn koch_truth() -> Pattern {
 }
 
 /// The truth drawn by the renderer itself: the fit's minimum is exactly at the truth.
-fn koch_target(size: usize, depth: usize, sigma: f64) -> Vec<f64> {
+fn koch_target(size: usize, depth: usize, sigma: f64) -> Image<f64> {
     pattern_target(&koch_truth(), size, depth, sigma)
 }
 
 /// `pattern` drawn by the renderer in the unit square.
-fn pattern_target(pattern: &Pattern, size: usize, depth: usize, sigma: f64) -> Vec<f64> {
+fn pattern_target(pattern: &Pattern, size: usize, depth: usize, sigma: f64) -> Image<f64> {
     SdfRaster::render(
         pattern,
         &SdfView::unit_square(size),
@@ -36,7 +37,7 @@ fn pattern_target(pattern: &Pattern, size: usize, depth: usize, sigma: f64) -> V
         },
     )
     .unwrap()
-    .image(sigma)
+    .to_image(sigma)
 }
 
 /// Distance between two point sets up to the Koch pattern's symmetry (reading the points in
@@ -145,7 +146,7 @@ fn koch_is_recovered_from_the_best_fit_line() {
     let target = koch_target(cfg.size, cfg.depth, cfg.sigma);
     let start = initial_points(
         &builtin("koch").unwrap(),
-        &target,
+        &target.values,
         &SdfView::unit_square(cfg.size),
         SdfInit::Line,
         0.0,
@@ -353,7 +354,7 @@ fn a_low_koch_curve_starts_from_the_stretched_box_and_is_recovered() {
     let view = SdfView::unit_square(size);
     let target = pattern_target(&truth, size, depth, sigma);
     let koch = builtin("koch").unwrap();
-    let starts = candidate_starts(&koch, &target, &view, true).unwrap();
+    let starts = candidate_starts(&koch, &target.values, &view, true).unwrap();
     let width = |t: &[f64]| (t[8] - t[0]).abs();
     let named = |n: &str| starts.iter().find(|(s, _)| *s == n).map(|(_, t)| t.clone());
     let kept = named("box").expect("the box start");
@@ -361,7 +362,7 @@ fn a_low_koch_curve_starts_from_the_stretched_box_and_is_recovered() {
     assert!(width(&kept) < 0.85 * 0.8, "kept aspect: {kept:?}");
     assert!((width(&stretched) - 0.8).abs() < 0.03, "{stretched:?}");
     // Without `stretched` the two are not offered.
-    let plain = candidate_starts(&koch, &target, &view, false).unwrap();
+    let plain = candidate_starts(&koch, &target.values, &view, false).unwrap();
     assert!(plain.iter().all(|(n, _)| !n.starts_with("box_stretched")));
     assert_eq!(plain.len() + 2, starts.len());
 

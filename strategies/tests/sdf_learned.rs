@@ -21,7 +21,7 @@ fn problem(cfg: LearnedConfig, loss: SdfLossConfig) -> SdfProblem {
         depth: 3,
         cutoff: None,
     };
-    let target = SdfRaster::render(&truth, &view, &rc).unwrap().image(1.5);
+    let target = SdfRaster::render(&truth, &view, &rc).unwrap().to_image(1.5);
     SdfProblem::new(truth, target, view, 3, 2.0, loss)
         .unwrap()
         .with_learned_pattern(cfg, 100)

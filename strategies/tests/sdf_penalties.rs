@@ -11,6 +11,7 @@
 
 use std::path::Path;
 
+use ifslab::image::Image;
 use ifslab::model::segment::{Pattern, SegmentMap, builtin};
 use ifslab::render::sdf::{SdfRaster, SdfRenderConfig, SdfView};
 use ifslab_strategies::driver::Differentiable;
@@ -127,7 +128,7 @@ fn the_loss_with_the_crossing_term_matches_finite_differences() {
         },
     )
     .unwrap()
-    .image(1.5);
+    .to_image(1.5);
     let loss = SdfLossConfig {
         levels: 3,
         crossing: 0.5,
@@ -220,7 +221,7 @@ fn the_whole_loss_gradient_with_the_barrier_matches_finite_differences() {
         depth: 3,
         cutoff: None,
     };
-    let target = SdfRaster::render(&truth, &view, &rc).unwrap().image(1.5);
+    let target = SdfRaster::render(&truth, &view, &rc).unwrap().to_image(1.5);
     let loss = SdfLossConfig {
         scale_barrier: 5.0,
         max_scale: 0.3,
@@ -245,6 +246,7 @@ fn square_fit_max_scale(barrier: f64) -> f64 {
             (x >= m && x <= 1.0 - m && y >= m && y <= 1.0 - m) as u8 as f64
         })
         .collect();
+    let target = Image::square(size, target).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let mut cfg = SdfConfig::paper(dir.path().join("unused.png"), "koch");
     cfg.size = size;

@@ -151,7 +151,7 @@ pub fn run(
             toml::to_string_pretty(&resolved)?.as_bytes(),
         )?;
     }
-    let t64: Vec<f64> = target.iter().map(|&v| v as f64).collect();
+    let t64 = target.widened().values;
     save_rgb(&dir.join("target.png"), &t64, size)?;
     let done_before = if resume {
         ifslab_strategies::driver::plan::checkpoint_iteration(dir)?
@@ -171,7 +171,7 @@ pub fn run(
     let stack = &out.stack;
     save_rgb(&dir.join("render.png"), &out.image, size)?;
     let w = 2 * size + 4;
-    let cmp: Vec<f32> = side_by_side(&target, &out.image, size)
+    let cmp: Vec<f32> = side_by_side(&target.values, &out.image, size)
         .iter()
         .map(|&v| v as f32)
         .collect();
@@ -197,7 +197,7 @@ pub fn run(
     write_flames(&dir.join(LEARNED_FLAME_FILE), &flames)?;
     loss_plot(&out.log, &dir.join("loss.png"))?;
     let fresh = out.iterations.saturating_sub(done_before).max(1);
-    let flat_mse = flat_colour_mse(&target, size);
+    let flat_mse = flat_colour_mse(&target.values, size);
     let summary = FlameSummary {
         strategy: cfg.strategy.name().to_owned(),
         iterations: out.iterations,
@@ -206,7 +206,7 @@ pub fn run(
         start_mse: out.start_loss,
         mse: out.loss,
         flat_mse,
-        mse_ratio: rgb_mse(&out.image, &target) / flat_mse.max(f64::MIN_POSITIVE),
+        mse_ratio: rgb_mse(&out.image, &target.values) / flat_mse.max(f64::MIN_POSITIVE),
         returned: out.returned.to_owned(),
         generators: stack.layers.iter().map(|l| l.len()).collect(),
         target_note: note,

@@ -485,7 +485,7 @@ pub fn render_turntable(
     render.sigma = 0.8;
     render.game.trajectories = 400;
     let planes = render_code(&maps, &cameras, &render, probs.as_deref(), seed)?;
-    write_views(dir, &table, side, side, &planes)?;
+    write_views(dir, &table, &planes)?;
     Ok(())
 }
 

@@ -6,6 +6,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use crate::error::{Context, IoContext};
+use ifslab::image::Image;
 use ifslab::loss::lpips::LPIPS_MIN_SIDE;
 use ifslab::loss::{Lpips, default_lpips_weights_path};
 use ifslab::metrics::{EVAL_BORDER_FRACTION, ImageMetrics, border_crop_rect, paper_metrics};
@@ -42,7 +43,7 @@ pub const EVAL_SUPERSAMPLE: u32 = 8;
 /// target's grey levels — the covered fraction of each pixel — are on the splat's scale) and
 /// about 200 points per pixel (2 M to 50 M), framed the same way. What a run is *scored*
 /// against is [`ground_truth`].
-pub fn prepare_target(cfg: &InversionConfig) -> crate::Result<Vec<f32>> {
+pub fn prepare_target(cfg: &InversionConfig) -> crate::Result<Image> {
     let size = cfg.target.size;
     if let Some(path) = &cfg.target.image {
         return load_target(path, size, cfg.target.polarity)
@@ -55,7 +56,10 @@ pub fn prepare_target(cfg: &InversionConfig) -> crate::Result<Vec<f32>> {
         supersample: cfg.renderer.supersample as u32,
         ..eval_config(size, cfg.seed)
     };
-    Ok(render(&maps, &probs, &rc, None)?.values)
+    Ok(Image::square(
+        size,
+        render(&maps, &probs, &rc, None)?.image.values,
+    )?)
 }
 
 /// The maps and evaluation probabilities of a config's target code (a code, or a suite's).
@@ -88,14 +92,18 @@ pub fn ground_truth(cfg: &InversionConfig, target: &[f32]) -> crate::Result<Vec<
         return Ok(target.to_vec());
     }
     let (maps, probs) = target_code(cfg)?;
-    Ok(render(&maps, &probs, &eval_config(cfg.target.size, cfg.seed), None)?.values)
+    Ok(
+        render(&maps, &probs, &eval_config(cfg.target.size, cfg.seed), None)?
+            .image
+            .values,
+    )
 }
 
 /// The target a run in `dir` optimises against: the framed copy the run stored when it
 /// started (exactly the same values, whatever the working directory and whether the original
 /// file still exists); for run folders from before that copy existed, prepared again from the
 /// config.
-pub fn run_target(cfg: &InversionConfig, dir: &Path) -> crate::Result<Vec<f32>> {
+pub fn run_target(cfg: &InversionConfig, dir: &Path) -> crate::Result<Image> {
     let stored = dir.join(FRAMED_TARGET_FILE);
     if stored.is_file() {
         return Ok(load_framed_target(&stored, cfg.target.size)?);
@@ -428,22 +436,18 @@ fn ranks_collage_starts(cfg: &InversionConfig) -> bool {
 }
 
 /// A framed target and how the picture was read (none for a code or suite target).
-type Framed<'a> = (&'a [f32], Option<&'a TargetReading>);
+type Framed<'a> = (&'a Image, Option<&'a TargetReading>);
 
 /// Fills a fresh run folder: the resolved config, the framed target (`framed`, else
 /// prepared from the config) and how the picture was read; returns the target.
-fn new_run_dir(
-    cfg: &InversionConfig,
-    dir: &Path,
-    framed: Option<Framed>,
-) -> crate::Result<Vec<f32>> {
+fn new_run_dir(cfg: &InversionConfig, dir: &Path, framed: Option<Framed>) -> crate::Result<Image> {
     let size = cfg.target.size;
     let (target, reading) = match (framed, &cfg.target.image) {
-        (Some((t, r)), _) => (t.to_vec(), r.cloned()),
+        (Some((t, r)), _) => (t.clone(), r.cloned()),
         (None, Some(path)) => {
             let f = load_framed_picture_with(path, size, cfg.target.polarity, cfg.target_cells())
                 .with_context(|| format!("preparing the target {}", path.display()))?;
-            (f.values, Some(f.reading))
+            (f.image, Some(f.reading))
         }
         (None, None) => (prepare_target(cfg)?, None),
     };
@@ -453,7 +457,7 @@ fn new_run_dir(
     }
     let resolved = cfg.with_absolute_paths()?;
     ifslab::io::write_atomic(&dir.join(CONFIG_FILE), resolved.to_toml().as_bytes())?;
-    save_framed_target(&dir.join(FRAMED_TARGET_FILE), &target, size)?;
+    save_framed_target(&dir.join(FRAMED_TARGET_FILE), &target)?;
     Ok(target)
 }
 
@@ -475,7 +479,7 @@ fn run_one(
         ensure_new_run_dir(dir)?;
         new_run_dir(cfg, dir, framed)?
     };
-    save_square_grey(&dir.join("target.png"), &target, size)?;
+    save_square_grey(&dir.join("target.png"), &target.values, size)?;
     progress.start(cfg.strategy.name(), cfg.iterations);
     let started = Instant::now();
     let outcome = run_inversion(
@@ -486,7 +490,7 @@ fn run_one(
         vec![Box::new(ProgressObserver::new(progress))],
     )?;
     let (metrics, lpips_metric_note) =
-        write_outputs(cfg, dir, &outcome, &target, framed.is_none())?;
+        write_outputs(cfg, dir, &outcome, &target.values, framed.is_none())?;
     let seconds = started.elapsed().as_secs_f64();
     let suite = match (&cfg.target.suite, cfg.target.index) {
         (Some(suite_dir), Some(index)) => {
@@ -628,7 +632,7 @@ pub fn redraw_pictures(cfg: &InversionConfig, dir: &Path) -> crate::Result<Vec<P
     let final_render = render(&maps, &probs, &eval_config(size, seed), None)?;
     final_render.save_png(&dir.join("render.png"), BitDepth::Eight, false)?;
     written.push(dir.join("render.png"));
-    let target = run_target(cfg, dir)?;
+    let target = run_target(cfg, dir)?.values;
     save_square_grey(&dir.join("target.png"), &target, size)?;
     written.push(dir.join("target.png"));
     if cfg.target.code.is_some() || cfg.target.suite.is_some() {

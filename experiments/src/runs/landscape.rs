@@ -151,11 +151,9 @@ fn run_sdf_landscape(
         }
         Centre::Truth => cfg.pattern()?.flat_points(),
     };
-    let ink: Vec<f64> = load_framed_target(&run_dir.join(FRAMED_TARGET_FILE), cfg.size)
+    let ink = load_framed_target(&run_dir.join(FRAMED_TARGET_FILE), cfg.size)
         .with_context(|| format!("{} has no framed target", run_dir.display()))?
-        .iter()
-        .map(|&v| v as f64)
-        .collect();
+        .widened();
     let reading = run_dir.join(TARGET_READING_FILE);
     let stroke = if reading.is_file() {
         TargetReading::load(&reading)?.framed_stroke()

@@ -14,6 +14,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use crate::error::{Context, IoContext};
+use ifslab::image::Image;
 use ifslab::model::segment::{Pattern, PatternFile, resolve_pattern};
 use ifslab::render::FIT_FILL;
 use ifslab::render::image_io::{BitDepth, save_grey_png};
@@ -148,7 +149,7 @@ struct Timed {
 /// returned with all of them summarised, each scored by `truth_iou` too.
 fn run_legs(
     cfg: &SdfConfig,
-    ink: &[f64],
+    ink: &Image<f64>,
     legs: &[(String, SdfConfig)],
     dir: &Path,
     resume: bool,
@@ -178,7 +179,7 @@ fn run_legs(
         )));
         let out = run_sdf(
             leg_cfg,
-            ink.to_vec(),
+            ink.clone(),
             None,
             &leg_dir,
             leg_resume,
@@ -186,7 +187,7 @@ fn run_legs(
         )
         .with_context(|| format!("the fit at σ = {sigma:.3} px ({folder})"))?;
         fresh += out.iterations.saturating_sub(done_before);
-        let leg = Leg::score(sdf_problem(leg_cfg, ink.to_vec(), None)?, out, ink)?;
+        let leg = Leg::score(sdf_problem(leg_cfg, ink.clone(), None)?, out, &ink.values)?;
         summaries.push(SdfLegSummary {
             sigma,
             folder,
@@ -279,7 +280,7 @@ pub fn run(
     cfg.validate()?;
     let _lock = crate::runs::lock::lock_run_dir(dir)?;
     let size = cfg.size;
-    let (target, reading): (Vec<f32>, Option<TargetReading>) = if resume {
+    let (target, reading): (Image, Option<TargetReading>) = if resume {
         let reading_file = dir.join(TARGET_READING_FILE);
         (
             load_framed_target(&dir.join(FRAMED_TARGET_FILE), size)?,
@@ -294,8 +295,8 @@ pub fn run(
         // A fit at several widths checkpoints in its legs' folders.
         refuse_existing_legs(dir, &leg_folder(0))?;
         let framed = load_framed_picture(&cfg.target, size, cfg.polarity)?;
-        let mut t = framed.values;
-        stretch_ink(&mut t);
+        let mut t = framed.image;
+        stretch_ink(&mut t.values);
         if let Some(spec) = &cfg.truth {
             // A truth that does not load is refused before the fit, not after it.
             resolve_pattern(spec).with_context(|| format!("`truth` {spec}"))?;
@@ -306,20 +307,20 @@ pub fn run(
             &dir.join(CONFIG_FILE),
             toml::to_string_pretty(&resolved)?.as_bytes(),
         )?;
-        save_framed_target(&dir.join(FRAMED_TARGET_FILE), &t, size)?;
+        save_framed_target(&dir.join(FRAMED_TARGET_FILE), &t)?;
         framed.reading.save(&dir.join(TARGET_READING_FILE))?;
         (t, Some(framed.reading))
     };
     let stroke = reading.as_ref().and_then(TargetReading::framed_stroke);
     save_grey_png(
         &dir.join("target.png"),
-        &target,
+        &target.values,
         size as u32,
         size as u32,
         BitDepth::Eight,
         true,
     )?;
-    let ink: Vec<f64> = target.iter().map(|&v| v as f64).collect();
+    let ink = target.widened();
     let truth = match &cfg.truth {
         Some(spec) => Some(resolve_pattern(spec).with_context(|| format!("`truth` {spec}"))?),
         None => None,
@@ -362,7 +363,7 @@ pub fn run(
         )?;
         let seconds = clock.elapsed().as_secs_f64();
         let problem = sdf_problem(cfg, ink.clone(), stroke)?;
-        let scored = Leg::score(problem, out, &ink)?;
+        let scored = Leg::score(problem, out, &ink.values)?;
         let fresh = scored.out.iterations.saturating_sub(done_before).max(1);
         (
             Timed {

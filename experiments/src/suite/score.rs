@@ -124,6 +124,7 @@ pub fn score_maps(
                 v.center,
                 entry.render_seed,
             )?
+            .image
             .values
         };
         let fraction = if v.factor == 1.0 {

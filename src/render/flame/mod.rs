@@ -70,6 +70,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::chaos::{mix_seed, trajectory_rng};
 use crate::error::{Error, Result};
+use crate::image::Image;
 use crate::io::write_atomic;
 use crate::isa::Isa;
 use crate::model::flame::{Flame, PreparedXform};
@@ -125,7 +126,9 @@ pub struct FlameStats {
     pub seconds: f64,
 }
 
-/// A rendered flame: RGB in [0, 255] and alpha in [0, 1] per pixel, rows top first.
+/// A rendered flame as flam3 keeps it: RGB in [0, 255] and alpha in [0, 1] per pixel
+/// (interleaved, what its PNG writer and the 8-bit comparisons read), rows top first;
+/// [`FlameImage::to_image`] and [`FlameImage::grey`] give it as the stack's [`Image`].
 #[derive(Clone, Debug)]
 pub struct FlameImage {
     /// Width in pixels.
@@ -165,14 +168,40 @@ impl FlameImage {
 
     /// The luminance image in [0, 1] (Rec. 709 weights on the 8-bit values), what the
     /// comparisons with flam3 measure.
-    pub fn grey(&self) -> Vec<f32> {
-        self.pixels
+    pub fn grey(&self) -> Image {
+        let values = self
+            .pixels
             .iter()
             .map(|p| {
                 let q = |v: f32| (v as u8) as f32 / 255.0;
                 0.2126 * q(p[0]) + 0.7152 * q(p[1]) + 0.0722 * q(p[2])
             })
-            .collect()
+            .collect();
+        Image {
+            width: self.width,
+            height: self.height,
+            channels: 1,
+            values,
+        }
+    }
+
+    /// The render as the stack's [`Image`]: four planes, RGB scaled to [0, 1] and alpha, at
+    /// the full precision of the histogram's tone map (not truncated to 8 bits).
+    pub fn to_image(&self) -> Image {
+        let n = self.pixels.len();
+        let mut values = vec![0.0f32; 4 * n];
+        for (i, p) in self.pixels.iter().enumerate() {
+            for c in 0..3 {
+                values[c * n + i] = p[c] / 255.0;
+            }
+            values[3 * n + i] = p[3];
+        }
+        Image {
+            width: self.width,
+            height: self.height,
+            channels: 4,
+            values,
+        }
     }
 
     /// Writes a PNG: RGB, or RGBA when `alpha`; 8 or 16 bits per channel.

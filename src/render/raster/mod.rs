@@ -38,6 +38,7 @@ use serde::{Deserialize, Serialize};
 use crate::budget::{MemoryEstimate, check_memory, check_rate};
 use crate::chaos::{LANES, MapSampler, PointSink, PointStream, WindowWords, WordSink};
 use crate::error::{Error, Result};
+use crate::image::Image;
 use crate::isa::Isa;
 use crate::model::code::Window;
 use crate::model::{Affine2, Map2};
@@ -234,17 +235,22 @@ fn unit_mass() -> f64 {
     1.0
 }
 
-/// A rendered grey image, values in [0, 1] (1 = attractor), row 0 at the top (largest y).
+/// A render and how it was made: a grey [`Image`], values in [0, 1] (1 = attractor), row 0
+/// at the top (largest y). It reads as its image (`raster.values`, `raster.width`).
 #[derive(Clone, Debug)]
 pub struct Raster {
-    /// Width in pixels.
-    pub width: u32,
-    /// Height in pixels.
-    pub height: u32,
-    /// Row-major values.
-    pub values: Vec<f32>,
+    /// The render.
+    pub image: Image,
     /// How it was made.
     pub stats: RenderStats,
+}
+
+impl std::ops::Deref for Raster {
+    type Target = Image;
+
+    fn deref(&self) -> &Image {
+        &self.image
+    }
 }
 
 /// The world → super-resolution mapping shared by both accumulators.
@@ -574,9 +580,7 @@ pub fn render_with_isa<M: Map2>(
         )?,
     };
     Ok(Raster {
-        width: cfg.width,
-        height: cfg.height,
-        values,
+        image: Image::grey(cfg.width, cfg.height, values)?,
         stats: RenderStats {
             window,
             points_generated: counts.0,

@@ -32,6 +32,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
+use crate::image::Image;
 use crate::model::segment::{Pattern, PrimitiveKind};
 use crate::render::sdf::primitive::{distance, distance_grad};
 use crate::render::sdf::words::WordTree;
@@ -464,6 +465,17 @@ impl SdfRaster {
             .with_min_len(4096)
             .map(|&d| intensity(d, sigma))
             .collect()
+    }
+
+    /// [`SdfRaster::image`] as the stack's [`Image`] (grey, at the raster's f64): a target
+    /// drawn by a pattern, as a problem takes one.
+    pub fn to_image(&self, sigma: f64) -> Image<f64> {
+        Image {
+            width: self.view.width as u32,
+            height: self.view.height as u32,
+            channels: 1,
+            values: self.image(sigma),
+        }
     }
 
     /// Pulls `∂L/∂image` back to `∂L/∂d`: `∂ exp(−d²/σ²)/∂d = −2d/σ²·exp(−d²/σ²)`.

@@ -5,12 +5,13 @@
 use std::borrow::Cow;
 use std::sync::Arc;
 
+use ifslab::image::Image;
 use ifslab::loss::{DSsim, ImageLoss};
 use ifslab::model::flame::learnable::{Background, FlameStack};
 use ifslab::render::Renderer;
 use ifslab::render::flame_diff::{DiffFlameConfig, FlameFrame, FlameRenderer, GeneratorOrder, mse};
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::problems::flame::config::{FlameLoss, Rates};
 use crate::problems::render_problem::{Moment, PlaneLoss, RenderProblem, SceneModel, Terms};
 
@@ -130,12 +131,12 @@ impl PlaneLoss<f64> for FlameImageLoss {
 }
 
 impl FlameProblem {
-    /// The problem of fitting stacks shaped like `stack` to `target` (three planes of
-    /// `cfg.size²` values in [0, 1]).
+    /// The problem of fitting stacks shaped like `stack` to `target` (RGB, `cfg.size ×
+    /// cfg.size`, values in [0, 1]).
     pub fn new(
         stack: FlameStack,
         cfg: DiffFlameConfig,
-        target: Vec<f32>,
+        target: Image,
         seed: u64,
         redraw_every: u64,
         rates: &Rates,
@@ -144,13 +145,8 @@ impl FlameProblem {
         loss.validate()?;
         cfg.validate()?;
         stack.validate()?;
-        if target.len() != 3 * cfg.size * cfg.size {
-            return Err(Error::InvalidInput(format!(
-                "an RGB target of {} values for a {}² image",
-                target.len(),
-                cfg.size
-            )));
-        }
+        target.expect_shape("the target", 3, cfg.size, cfg.size)?;
+        let target = target.values;
         let mut r = Vec::with_capacity(stack.n_params());
         let mut geometry = Vec::with_capacity(stack.n_params());
         for l in &stack.layers {

@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use argmin::core::State;
 use argmin::core::observers::Observe;
+use ifslab::image::Image;
 use ifslab::model::flame::learnable::{FlameStack, LearnableFlame};
 
 use crate::driver::GradState;
@@ -47,7 +48,7 @@ pub fn load_rgb_target(
     path: &Path,
     size: usize,
     background: [f64; 3],
-) -> Result<(Vec<f32>, Option<String>)> {
+) -> Result<(Image, Option<String>)> {
     load_rgb_picture(path, size, Some(background), false)
 }
 
@@ -64,7 +65,7 @@ pub fn load_rgb_picture(
     size: usize,
     background: Option<[f64; 3]>,
     frame: bool,
-) -> Result<(Vec<f32>, Option<String>)> {
+) -> Result<(Image, Option<String>)> {
     let bytes = std::fs::read(path).map_err(|e| Error::file(path, e))?;
     let img = image::load_from_memory(&bytes)
         .map_err(|e| Error::file(path, format!("not a readable image ({e})")))?;
@@ -137,7 +138,8 @@ pub fn load_rgb_picture(
     } else {
         Some(notes.join("; "))
     };
-    Ok((out, note))
+    let side = u32::try_from(size).map_err(|_| Error::param("size", "too large"))?;
+    Ok((Image::new(side, side, 3, out)?, note))
 }
 
 /// The content of an RGB picture (three `w × h` planes) cut to its box with a margin and
@@ -236,9 +238,9 @@ pub fn initial_stack(cfg: &FlameLearnConfig, target: &[f32]) -> Result<FlameStac
 }
 
 /// The problem `cfg` describes for `target`.
-pub fn flame_problem(cfg: &FlameLearnConfig, target: Vec<f32>) -> Result<FlameProblem> {
+pub fn flame_problem(cfg: &FlameLearnConfig, target: Image) -> Result<FlameProblem> {
     FlameProblem::new(
-        initial_stack(cfg, &target)?,
+        initial_stack(cfg, &target.values)?,
         cfg.sampler.clone(),
         target,
         cfg.seed,
@@ -248,13 +250,13 @@ pub fn flame_problem(cfg: &FlameLearnConfig, target: Vec<f32>) -> Result<FlamePr
     )
 }
 
-/// Runs the fit `cfg` describes against `target` (three planes of `size²`), writing
+/// Runs the fit `cfg` describes against `target` (RGB, `size × size`), writing
 /// `start.json`, `checkpoint.json` and `log.csv` into `dir`. With `resume`, continues from
 /// the checkpoint there; every step is deterministic, so the result is bit-identical to an
 /// uninterrupted run.
 pub fn run_flame(
     cfg: &FlameLearnConfig,
-    target: Vec<f32>,
+    target: Image,
     dir: &Path,
     resume: bool,
     observers: Vec<Box<dyn Observe<GradState> + Send>>,

@@ -383,7 +383,9 @@ pub fn initial_theta(
                 // The picture read again at `model.start_size` for the start alone.
                 let reread = match (&cfg.model.start_size, &cfg.target.image) {
                     (Some(side), Some(path)) if *side != cfg.target.size => Some((
-                        load_framed_picture(path, *side, cfg.target.polarity)?.values,
+                        load_framed_picture(path, *side, cfg.target.polarity)?
+                            .image
+                            .values,
                         *side,
                     )),
                     _ => None,
@@ -606,7 +608,8 @@ mod tests {
         let target =
             crate::problems::image::target::load_target(&path, 48, plain.target.polarity).unwrap();
         let model = plain.model.build().unwrap();
-        let theta = |cfg: &InversionConfig| initial_theta(cfg, model.as_ref(), &target).unwrap();
+        let theta =
+            |cfg: &InversionConfig| initial_theta(cfg, model.as_ref(), &target.values).unwrap();
         let mut unset = plain.clone();
         unset.model.start_size = None;
         let own = config("init = \"collage\"\nstart_size = 48\n");
@@ -616,7 +619,7 @@ mod tests {
         // A missing picture is an error that names it, not a silent fall-back.
         let mut gone = finer.clone();
         gone.target.image = Some(dir.path().join("gone.png"));
-        let err = initial_theta(&gone, model.as_ref(), &target)
+        let err = initial_theta(&gone, model.as_ref(), &target.values)
             .unwrap_err()
             .to_string();
         assert!(err.contains("gone.png"), "{err}");

@@ -12,6 +12,10 @@
 //! through the fused GPU pass instead ([`splat::objective_and_grad`]), which never brings
 //! the image to the CPU.
 //!
+//! The trait the instance is generic over, [`ImageModel`] (θ ↔ maps of one type), and the
+//! probability rule [`MapProbabilities`] are defined here, so this file imports nothing of
+//! the models or the config that use it.
+//!
 //! [`ImageProblem`]: super::ImageProblem
 //! [`AnyModel`]: super::AnyModel
 
@@ -19,15 +23,54 @@ use std::borrow::{Borrow, Cow};
 
 use candle_core::{Device, Tensor, Var};
 use ifslab::loss::{LossBreakdown, Objective};
-use ifslab::model::ProbabilityRule;
+use ifslab::model::{Affine2, AffinePart, ProbabilityRule};
 use ifslab::render::Renderer;
 use ifslab::render::splat::{self, Splat, SplatConfig};
+use serde::{Deserialize, Serialize};
 
 use crate::driver::{Differentiable, Evaluation};
 use crate::error::{Error, Result};
-use crate::problems::image::config::MapProbabilities;
-use crate::problems::image::model::ImageModel;
 use crate::problems::render_problem::{Moment, PlaneLoss, RenderProblem, SceneModel, Terms};
+
+/// θ ↔ maps of type [`ImageModel::Map`]: what the image problem fits.
+pub trait ImageModel: Send + Sync + 'static {
+    /// The maps θ describes.
+    type Map: AffinePart + Send + Sync + 'static;
+
+    /// The maps θ describes (an error when θ has the wrong length or a bad value).
+    fn decode(&self, theta: &[f64]) -> Result<Vec<Self::Map>>;
+
+    /// The chain rule: the gradient with respect to θ from the gradient with respect to the
+    /// maps' parameters (flat, map after map, in [`DiffMap::write_params`](ifslab::model::DiffMap::write_params) order).
+    fn backward(&self, theta: &[f64], grad_params: &[f64]) -> Result<Vec<f64>>;
+
+    /// Brings θ back into the model's domain after a step (default: nothing to do).
+    fn project(&self, _theta: &mut [f64]) {}
+
+    /// θ for a start given as affine maps (the closest maps of the model).
+    fn encode(&self, start: &[Affine2]) -> Result<Vec<f64>>;
+
+    /// The maps as affine maps, for the evaluation renderer and the code file; an error for
+    /// maps that are not affine.
+    fn to_affine(&self, maps: &[Self::Map]) -> Result<Vec<Affine2>>;
+}
+
+/// How the differentiable renderer's chaos game picks maps.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MapProbabilities {
+    /// Every map equally likely.
+    #[default]
+    Uniform,
+    /// Proportional to |det M| (uniform if every determinant is 0).
+    Determinant,
+}
+
+impl MapProbabilities {
+    pub(crate) fn is_uniform(&self) -> bool {
+        *self == MapProbabilities::Uniform
+    }
+}
 
 /// Names of the logged loss terms, in column order.
 pub const TERMS: [&str; 5] = ["msmse", "dssim", "lpips", "moments", "regulariser"];

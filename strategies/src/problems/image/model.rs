@@ -1,8 +1,9 @@
 //! What an image inversion fits: a flat θ ↔ maps of one type that the fused splat op renders
 //! and differentiates.
 //!
-//! A model is an [`ImageModel`]: its map type (any [`DiffMap2`] with an [`AffinePart`] for
-//! the regulariser), how θ decodes into maps, the chain rule back to θ, a projection, and how
+//! A model is an [`ImageModel`]: its map type (any [`DiffMap2`](ifslab::model::DiffMap2)
+//! with an [`AffinePart`](ifslab::model::AffinePart) for the regulariser), how θ decodes
+//! into maps, the chain rule back to θ, a projection, and how
 //! a start given as affine maps (a random code, an EM fit, a code file) becomes θ. The
 //! [`ImageProblem`](super::ImageProblem) holds a model behind [`AnyModel`], type-erased once
 //! per evaluation (never per point: the splat is monomorphised for `M::Map`), so a new map
@@ -15,7 +16,7 @@
 
 use candle_core::Tensor;
 use ifslab::loss::{LossBreakdown, Objective};
-use ifslab::model::diff_map::{AffinePart, Similitude2};
+use ifslab::model::diff_map::Similitude2;
 use ifslab::model::{Affine2, Parameterisation};
 use ifslab::render::Renderer;
 use ifslab::render::splat;
@@ -26,30 +27,10 @@ use serde::{Deserialize, Serialize};
 use crate::driver::Evaluation;
 use crate::error::{Error, Result};
 use crate::problems::image::instance::{self, ImageRendering, splat_problem};
+// The trait a model implements and the probability rule live with the instance they
+// parameterise; they keep their paths here.
+pub use crate::problems::image::instance::{ImageModel, MapProbabilities};
 use crate::problems::render_problem::Moment;
-
-/// θ ↔ maps of type [`ImageModel::Map`]: what the image problem fits.
-pub trait ImageModel: Send + Sync + 'static {
-    /// The maps θ describes.
-    type Map: AffinePart + Send + Sync + 'static;
-
-    /// The maps θ describes (an error when θ has the wrong length or a bad value).
-    fn decode(&self, theta: &[f64]) -> Result<Vec<Self::Map>>;
-
-    /// The chain rule: the gradient with respect to θ from the gradient with respect to the
-    /// maps' parameters (flat, map after map, in [`DiffMap::write_params`](ifslab::model::DiffMap::write_params) order).
-    fn backward(&self, theta: &[f64], grad_params: &[f64]) -> Result<Vec<f64>>;
-
-    /// Brings θ back into the model's domain after a step (default: nothing to do).
-    fn project(&self, _theta: &mut [f64]) {}
-
-    /// θ for a start given as affine maps (the closest maps of the model).
-    fn encode(&self, start: &[Affine2]) -> Result<Vec<f64>>;
-
-    /// The maps as affine maps, for the evaluation renderer and the code file; an error for
-    /// maps that are not affine.
-    fn to_affine(&self, maps: &[Self::Map]) -> Result<Vec<Affine2>>;
-}
 
 /// Any [`ImageModel`], its map type erased: what the image problem holds. Implemented for
 /// every model; each call builds the problem's instance of the model's map type
@@ -328,25 +309,8 @@ pub struct ModelConfig {
     pub probabilities: MapProbabilities,
 }
 
-/// How the differentiable renderer's chaos game picks maps.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum MapProbabilities {
-    /// Every map equally likely.
-    #[default]
-    Uniform,
-    /// Proportional to |det M| (uniform if every determinant is 0).
-    Determinant,
-}
-
 fn is_zero(v: &usize) -> bool {
     *v == 0
-}
-
-impl MapProbabilities {
-    fn is_uniform(&self) -> bool {
-        *self == MapProbabilities::Uniform
-    }
 }
 
 impl ModelConfig {

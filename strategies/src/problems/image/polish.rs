@@ -302,6 +302,7 @@ mod tests {
             None,
         )
         .unwrap()
+        .image
         .values
     }
 

@@ -3,7 +3,8 @@
 //! ([`instance::SplatProblem`](super::instance::SplatProblem)) — or, with the splat on the
 //! GPU and a loss the GPU computes, one fused GPU pass (`ifslab::render::splat::iteration`).
 
-use candle_core::{Device, Tensor};
+use candle_core::{DType, Device, Tensor};
+use ifslab::image::Image;
 use ifslab::loss::{ImageLoss, LossBreakdown, LossConfig, MsMse, Objective};
 use ifslab::render::splat::{SplatConfig, SplatDevice};
 
@@ -23,32 +24,24 @@ pub struct ImageProblem {
     model: Box<dyn AnyModel>,
     rendering: ImageRendering,
     objective: Objective,
-    target: Vec<f32>,
+    target: Image,
     anneal_mse: MsMse,
 }
 
 impl ImageProblem {
-    /// The problem for `target` (row-major `splat.width × splat.height`, values in [0, 1]),
+    /// The problem for `target` (grey, `splat.width × splat.height`, values in [0, 1]),
     /// fitting the maps of `model`.
     pub fn new(
         model: Box<dyn AnyModel>,
         splat: SplatConfig,
         loss: LossConfig,
-        target: Vec<f32>,
+        target: Image,
         seed: u64,
     ) -> Result<Self> {
         splat.validate()?;
         loss.validate()?;
-        if target.len() != splat.width * splat.height {
-            return Err(Error::InvalidInput(format!(
-                "target has {} pixels, the renderer {}×{}",
-                target.len(),
-                splat.width,
-                splat.height
-            )));
-        }
-        let t = Tensor::from_vec(target.clone(), (splat.height, splat.width), &Device::Cpu)
-            .map_err(ifslab::Error::from)?;
+        target.expect_shape("the target", 1, splat.width, splat.height)?;
+        let t = target.to_tensor(DType::F32, &Device::Cpu)?;
         let anneal_mse = MsMse::new(loss.msmse_levels).with_reduction(loss.msmse_reduction);
         let objective = Objective::new(loss, &t)?;
         Ok(ImageProblem {
@@ -68,7 +61,7 @@ impl ImageProblem {
 
     /// The problem `cfg` describes (parameterisation, renderer with its σ schedule, loss,
     /// seed) for `target`.
-    pub fn from_config(cfg: &InversionConfig, target: Vec<f32>) -> Result<Self> {
+    pub fn from_config(cfg: &InversionConfig, target: Image) -> Result<Self> {
         let mut p = ImageProblem::new(
             cfg.model.build()?,
             cfg.splat_config(),
@@ -118,7 +111,7 @@ impl ImageProblem {
     }
 
     /// The framed target.
-    pub fn target(&self) -> &[f32] {
+    pub fn target(&self) -> &Image {
         &self.target
     }
 
@@ -183,6 +176,6 @@ impl Anneal for ImageProblem {
         let pred = self.render_at(theta, stream, frac)?;
         Ok(self
             .anneal_mse
-            .value(&pred, &self.target, r.splat.width, r.splat.height)? as f64)
+            .value(&pred, &self.target.values, r.splat.width, r.splat.height)? as f64)
     }
 }

@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use argmin::core::State;
 use argmin::core::observers::Observe;
+use ifslab::image::Image;
 use ifslab::model::{Affine2, IfsCode};
 
 use crate::driver::GradState;
@@ -55,9 +56,11 @@ fn polish_fit(
     rounds: usize,
 ) -> Result<Option<Polished>> {
     let reread = match &cfg.target.image {
-        Some(path) if cfg.target.size != POLISH_SIZE => {
-            Some(load_framed_picture(path, POLISH_SIZE, cfg.target.polarity)?.values)
-        }
+        Some(path) if cfg.target.size != POLISH_SIZE => Some(
+            load_framed_picture(path, POLISH_SIZE, cfg.target.polarity)?
+                .image
+                .values,
+        ),
         _ => None,
     };
     let (image, side) = reread
@@ -184,13 +187,13 @@ fn select(
     ))
 }
 
-/// Runs the inversion described by `cfg` against `target` (framed, `size × size`), writing
+/// Runs the inversion described by `cfg` against `target` (framed, grey, `size × size`), writing
 /// `checkpoint.json` and `log.csv` into `dir`. With `resume`, continues from the checkpoint
 /// there; the result is bit-identical to an uninterrupted run. `observers` see every
 /// iteration (a progress bar, say).
 pub fn run_inversion(
     cfg: &InversionConfig,
-    target: Vec<f32>,
+    target: Image,
     dir: &Path,
     resume: bool,
     observers: Vec<Box<dyn Observe<GradState> + Send>>,
@@ -211,7 +214,7 @@ pub fn run_inversion(
     // Run folders from before the start was kept have none: the start is then no candidate.
     let start_theta = plan
         .start(resume_from, || {
-            initial_theta(cfg, problem.model(), problem.target())
+            initial_theta(cfg, problem.model(), &problem.target().values)
         })?
         .unwrap_or_default();
     let lpips_note = problem.lpips_skip_reason().map(str::to_owned);
@@ -221,7 +224,7 @@ pub fn run_inversion(
     let mut maps = problem.model().affine_maps(&theta)?;
     let polished = match cfg.model.polish {
         0 => None,
-        rounds => polish_fit(cfg, problem.target(), &maps, rounds)?,
+        rounds => polish_fit(cfg, &problem.target().values, &maps, rounds)?,
     };
     if let Some(p) = polished.as_ref().filter(|p| p.kept) {
         theta = problem.model().encode(&p.maps)?;
@@ -269,7 +272,7 @@ mod tests {
             None,
         )
         .unwrap()
-        .values;
+        .image;
         let cfg = InversionConfig {
             paper: true,
             seed: 1,
@@ -311,7 +314,7 @@ mod tests {
         let mut stretched = maps.clone();
         stretched[0].m[(0, 0)] *= 2.0 * 1.03;
         let last = problem.model().encode(&stretched).unwrap();
-        let start = initial_theta(&cfg, problem.model(), problem.target()).unwrap();
+        let start = initial_theta(&cfg, problem.model(), &problem.target().values).unwrap();
         assert!(!is_ifs(&problem, &last) && is_ifs(&problem, &start));
         let state = GradState::new().param(last.clone());
         let (theta, s) = select(&problem, &state, &start).unwrap();

@@ -90,8 +90,8 @@ pub const TARGET_READING_FILE: &str = "target.json";
 /// A picture framed as a target, and what was read from it.
 #[derive(Clone, Debug)]
 pub struct FramedTarget {
-    /// `size × size` values in [0, 1], the shape bright.
-    pub values: Vec<f32>,
+    /// The grey `size × size` target, values in [0, 1], the shape bright.
+    pub image: Image,
     /// What the loader read.
     pub reading: TargetReading,
 }
@@ -117,8 +117,8 @@ impl TargetReading {
 }
 
 /// Loads `path` and frames it into a `size × size` target.
-pub fn load_target(path: &Path, size: usize, polarity: Polarity) -> Result<Vec<f32>> {
-    Ok(load_framed_picture(path, size, polarity)?.values)
+pub fn load_target(path: &Path, size: usize, polarity: Polarity) -> Result<Image> {
+    Ok(load_framed_picture(path, size, polarity)?.image)
 }
 
 /// Loads `path` and frames it into a `size × size` target, with what was read from it.
@@ -378,8 +378,8 @@ fn normalise(
 
 /// Frames an image (colour images by their luma, transparent ones by their opacity: see
 /// [`shape_plane`]) into a `size × size` grey target (values in [0, 1], shape bright).
-pub fn frame_target(img: &Image, size: usize, polarity: Polarity) -> Result<Vec<f32>> {
-    Ok(frame_picture(img, size, polarity)?.values)
+pub fn frame_target(img: &Image, size: usize, polarity: Polarity) -> Result<Image> {
+    Ok(frame_picture(img, size, polarity)?.image)
 }
 
 /// [`frame_target`], with what was read from the picture: its polarity, levels, noise, the
@@ -469,7 +469,7 @@ pub fn frame_picture_with(
     reading.scale = scale;
     reading.stroke = stroke_width(&v, w, h);
     Ok(FramedTarget {
-        values: out,
+        image: Image::square(size, out)?,
         reading,
     })
 }
@@ -544,19 +544,15 @@ fn cell_levels(
     }
 }
 
-/// Writes a framed `size × size` target atomically as a lossless `.npy` array.
-pub fn save_framed_target(path: &Path, target: &[f32], size: usize) -> Result<()> {
-    if target.len() != size * size {
-        return Err(Error::param(
-            "target",
-            format!("{} values do not make a {size}×{size} image", target.len()),
-        ));
-    }
-    PointSet::new(size, target.iter().map(|&v| v as f64).collect())?.save(path)
+/// Writes a framed target (grey, square) atomically as a lossless `.npy` array.
+pub fn save_framed_target(path: &Path, target: &Image) -> Result<()> {
+    let size = target.width as usize;
+    target.expect_shape("a framed target", 1, size, size)?;
+    PointSet::new(size, target.values.iter().map(|&v| v as f64).collect())?.save(path)
 }
 
 /// Reads a target written by [`save_framed_target`]; it must be `size × size`.
-pub fn load_framed_target(path: &Path, size: usize) -> Result<Vec<f32>> {
+pub fn load_framed_target(path: &Path, size: usize) -> Result<Image> {
     let rows = PointSet::load(path)?;
     if rows.dim() != size || rows.len() != size {
         return Err(Error::file(
@@ -569,7 +565,10 @@ pub fn load_framed_target(path: &Path, size: usize) -> Result<Vec<f32>> {
         ));
     }
     // f32 → f64 → f32 is exact, so the values are the ones that were saved.
-    Ok(rows.as_slice().iter().map(|&v| v as f32).collect())
+    Ok(Image::square(
+        size,
+        rows.as_slice().iter().map(|&v| v as f32).collect(),
+    )?)
 }
 
 #[cfg(test)]
@@ -598,7 +597,7 @@ mod tests {
                 1.0
             }
         });
-        let t = frame_target(&img, 64, Polarity::Auto).unwrap();
+        let t = frame_target(&img, 64, Polarity::Auto).unwrap().values;
         let lit: Vec<(usize, usize)> = (0..64 * 64)
             .filter(|&i| t[i] > 0.5)
             .map(|i| (i % 64, i / 64))
@@ -621,12 +620,20 @@ mod tests {
         let t: Vec<f32> = (0..16 * 16)
             .map(|i| (i as f32 * 0.37).sin().abs() / 3.0)
             .collect();
-        save_framed_target(&path, &t, 16).unwrap();
+        let t = Image::square(16, t).unwrap();
+        save_framed_target(&path, &t).unwrap();
         let back = load_framed_target(&path, 16).unwrap();
-        assert!(t.iter().zip(&back).all(|(a, b)| a.to_bits() == b.to_bits()));
+        assert!(
+            t.values
+                .iter()
+                .zip(&back.values)
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+        );
         let e = load_framed_target(&path, 32).unwrap_err().to_string();
         assert!(e.contains("16×16") && e.contains("32×32"), "{e}");
-        assert!(save_framed_target(&path, &t, 15).is_err());
+        let wide = Image::grey(16, 15, vec![0.0; 240]).unwrap();
+        let e = save_framed_target(&path, &wide).unwrap_err().to_string();
+        assert!(e.contains("16×15 grey image; 16×16 grey is needed"), "{e}");
     }
 
     #[test]
@@ -655,8 +662,12 @@ mod tests {
             "{e}"
         );
         // Said explicitly, the same picture is framed, and the two ways round differ.
-        let bright = frame_target(&photo, 32, "bright-on-dark".parse().unwrap()).unwrap();
-        let dark = frame_target(&photo, 32, "dark_on_light".parse().unwrap()).unwrap();
+        let bright = frame_target(&photo, 32, "bright-on-dark".parse().unwrap())
+            .unwrap()
+            .values;
+        let dark = frame_target(&photo, 32, "dark_on_light".parse().unwrap())
+            .unwrap()
+            .values;
         assert_ne!(bright, dark);
         assert_eq!("auto".parse::<Polarity>().unwrap(), Polarity::Auto);
         let e = "sideways".parse::<Polarity>().unwrap_err().to_string();
@@ -698,7 +709,7 @@ mod tests {
                 && (y as f32 - (100.0 + 30.0 * (x as f32 / 9.0).sin())).abs() < 0.5;
             0.2 + if on { 0.35 } else { 0.0 } + noise(x, y, 0.05)
         });
-        let t = frame_target(&img, 64, Polarity::Auto).unwrap();
+        let t = frame_target(&img, 64, Polarity::Auto).unwrap().values;
         // The curve spans 80 × ~61 pixels: its longer side fills 75 % of the frame.
         let (x0, x1, y0, y1) = lit_box(&t, 64, 0.3);
         assert!((x1 - x0 + 1).abs_diff(48) <= 2, "width {}", x1 - x0 + 1);
@@ -730,7 +741,7 @@ mod tests {
             (if disc(x, y) { 0.8 } else { 0.25 } + noise(x, y, 0.1)).clamp(0.0, 1.0)
         });
         for img in [light, dark] {
-            let t = frame_target(&img, 32, Polarity::Auto).unwrap();
+            let t = frame_target(&img, 32, Polarity::Auto).unwrap().values;
             // The disc is the bright, centred shape.
             assert!(t[16 * 32 + 16] > 0.6, "centre {}", t[16 * 32 + 16]);
             assert!(t[2 * 32 + 2] < 0.1, "corner {}", t[2 * 32 + 2]);
@@ -750,7 +761,7 @@ mod tests {
                 .map(|(x, y)| if inside(x, y) { 1.0 } else { 0.0 }),
         );
         let img = Image::new(w, h, 4, values).unwrap();
-        let t = frame_target(&img, 32, Polarity::Auto).unwrap();
+        let t = frame_target(&img, 32, Polarity::Auto).unwrap().values;
         let (x0, x1, y0, y1) = lit_box(&t, 32, 0.5);
         assert_eq!((x1 - x0 + 1, y1 - y0 + 1), (24, 24), "a 75 % square");
         // Said to be dark on light, the picture is read by its colours instead: white on
@@ -788,13 +799,14 @@ mod tests {
             if square || line || bar { 1.0 } else { 0.0 }
         });
         let pol = Polarity::BrightOnDark;
-        let area = frame_picture(&img, 64, pol).unwrap().values;
+        let area = frame_picture(&img, 64, pol).unwrap().image.values;
         let cells = Cells {
             per_side: 4,
             threshold: 0.5,
         };
         let framed = frame_picture_with(&img, 64, pol, Some(cells))
             .unwrap()
+            .image
             .values;
         // The line's column: the largest level in each row, over rows away from the
         // square and the bar.

@@ -271,7 +271,8 @@ impl<T: SplatReal> Image3dProblem<T> {
         let (width, height) = views.size();
         let pixels = width * height;
         let target_ink = views
-            .planes
+            .image
+            .values
             .chunks_exact(pixels)
             .map(|p| p.iter().map(|&v| f64::from(v)).sum::<f64>() / pixels as f64)
             .collect();
@@ -286,7 +287,8 @@ impl<T: SplatReal> Image3dProblem<T> {
         };
         let view_loss = Image3dLoss {
             targets: views
-                .planes
+                .image
+                .values
                 .iter()
                 .map(|&v| T::from(v).unwrap_or_else(T::zero))
                 .collect(),

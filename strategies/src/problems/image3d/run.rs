@@ -393,11 +393,17 @@ pub fn write_outputs(
     let svd = &outcome.svd_maps;
     let (w, h) = views.size();
     let fitted = render_views(svd, &views.cameras, &render, probs.as_deref(), cfg.seed)?;
-    let rows = [views.planes.as_slice(), fitted.as_slice()];
+    let rows = [views.image.values.as_slice(), fitted.values.as_slice()];
     save_strip(&dir.join("views.png"), &rows, views.len(), w, h)?;
     let table = turntable_around(&views.cameras, 128)?;
     let turn = render_views(svd, &table, &render, probs.as_deref(), cfg.seed)?;
-    save_strip(&dir.join("turntable.png"), &[&turn], table.len(), 128, 128)?;
+    save_strip(
+        &dir.join("turntable.png"),
+        &[&turn.values],
+        table.len(),
+        128,
+        128,
+    )?;
 
     let (baseline, fit) = match truth {
         Some((maps, probs)) => {
@@ -515,7 +521,7 @@ pub fn render_code(
     render: &MultiViewConfig,
     probs: Option<&[f64]>,
     seed: u64,
-) -> Result<Vec<f32>> {
+) -> Result<Image> {
     let svd: Vec<SvdMap3> = maps
         .iter()
         .map(|m| SvdMap3::from_affine(m, 1e-9))

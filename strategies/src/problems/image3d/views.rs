@@ -100,27 +100,23 @@ impl TurntableFile {
 pub struct Views {
     /// One camera per view, all with the pictures' size.
     pub cameras: Vec<Camera>,
-    /// The views' planes in [0, 1] (ink 1), channel-major: view after view, each
-    /// row-major.
-    pub planes: Vec<f32>,
+    /// The pictures, one plane per view (ink 1, values in [0, 1]): the image the multi-view
+    /// splat draws, plane after plane.
+    pub image: Image,
     /// Where each picture was read from (empty for views made in memory).
     pub files: Vec<PathBuf>,
 }
 
 impl Views {
-    /// Views from `cameras` and their `planes` (view after view); refuses no camera,
-    /// cameras of different sizes, a plane count that does not match, and values that are
-    /// not finite.
-    pub fn new(cameras: Vec<Camera>, planes: Vec<f32>) -> Result<Views> {
+    /// Views from `cameras` and `image`, its plane `i` the picture camera `i` sees; refuses
+    /// no camera, cameras of different sizes, an image that is not one plane of their size
+    /// per camera, and values that are not finite.
+    pub fn new(cameras: Vec<Camera>, image: Image) -> Result<Views> {
         let (w, h) = check_cameras(&cameras)?;
-        if planes.len() != cameras.len() * w * h {
-            return Err(Error::InvalidInput(format!(
-                "{} values for {} views of {w}×{h}",
-                planes.len(),
-                cameras.len()
-            )));
-        }
-        if let Some(i) = planes.iter().position(|v| !v.is_finite()) {
+        let views = u32::try_from(cameras.len())
+            .map_err(|_| Error::InvalidInput(format!("{} views are too many", cameras.len())))?;
+        image.expect_shape("the views' image", views, w, h)?;
+        if let Some(i) = image.values.iter().position(|v| !v.is_finite()) {
             return Err(Error::InvalidInput(format!(
                 "view {} holds a non-finite value",
                 i / (w * h)
@@ -128,7 +124,7 @@ impl Views {
         }
         Ok(Views {
             cameras,
-            planes,
+            image,
             files: Vec::new(),
         })
     }
@@ -152,7 +148,8 @@ impl Views {
             eat(&(c.width() as u64).to_le_bytes());
             eat(&(c.height() as u64).to_le_bytes());
         }
-        self.planes
+        self.image
+            .values
             .iter()
             .for_each(|v| eat(&v.to_bits().to_le_bytes()));
         format!("{h:016x}")
@@ -175,8 +172,7 @@ impl Views {
 
     /// View `i`'s plane.
     pub fn plane(&self, i: usize) -> &[f32] {
-        let (w, h) = self.size();
-        &self.planes[i * w * h..(i + 1) * w * h]
+        self.image.plane(i)
     }
 
     /// The views at `indices` (in that order); refuses an empty list and an index past
@@ -192,9 +188,10 @@ impl Views {
         for &i in indices {
             planes.extend_from_slice(self.plane(i));
         }
+        let (w, h) = self.size();
         let mut out = Views::new(
             indices.iter().map(|&i| self.cameras[i].clone()).collect(),
-            planes,
+            Image::new(w as u32, h as u32, indices.len() as u32, planes)?,
         )?;
         if self.files.len() == self.len() {
             out.files = indices.iter().map(|&i| self.files[i].clone()).collect();
@@ -370,7 +367,8 @@ fn read_pictures(cameras: Vec<Camera>, files: Vec<PathBuf>) -> Result<Views> {
             shape_plane(&img, Polarity::Auto).map_err(|e| Error::file(f, e.to_string()))?;
         planes.extend_from_slice(&plane);
     }
-    let mut views = Views::new(cameras, planes)?;
+    let n = cameras.len() as u32;
+    let mut views = Views::new(cameras, Image::new(w as u32, h as u32, n, planes)?)?;
     views.files = files;
     Ok(views)
 }
@@ -384,30 +382,28 @@ pub fn render_views(
     render: &MultiViewConfig,
     probs: Option<&[f64]>,
     seed: u64,
-) -> Result<Vec<f32>> {
+) -> Result<Image> {
     let splat = MultiViewSplat::<SvdMap3, f32>::new(render.clone(), cameras.to_vec())?
         .with_probabilities(probs.map(<[f64]>::to_vec));
     let sampling = splat.sampling(maps, seed, 0);
-    Ok(splat.forward(maps, &sampling)?.0)
+    let planes = splat.forward(maps, &sampling)?.0;
+    let (w, h) = check_cameras(cameras)?;
+    Ok(Image::new(
+        w as u32,
+        h as u32,
+        cameras.len() as u32,
+        planes,
+    )?)
 }
 
-/// Writes a views folder: `planes` (ink 1, view after view) as `view_000.png`, … — dark
-/// ink on white — and `spec` as its `turntable.json` (with the files named). The cameras
-/// are `spec`'s at the planes' size.
-pub fn write_views(
-    dir: &Path,
-    spec: &TurntableFile,
-    width: usize,
-    height: usize,
-    planes: &[f32],
-) -> Result<()> {
-    if planes.len() != spec.views * width * height {
-        return Err(Error::InvalidInput(format!(
-            "{} values for {} views of {width}×{height}",
-            planes.len(),
-            spec.views
-        )));
-    }
+/// Writes a views folder: `views`' planes (ink 1, one per view) as `view_000.png`, … —
+/// dark ink on white — and `spec` as its `turntable.json` (with the files named). The
+/// cameras are `spec`'s at the planes' size.
+pub fn write_views(dir: &Path, spec: &TurntableFile, views: &Image) -> Result<()> {
+    let (width, height) = (views.width as usize, views.height as usize);
+    let n = u32::try_from(spec.views).map_err(|_| Error::param("views", "too many"))?;
+    views.expect_shape("the views' image", n, width, height)?;
+    let planes = &views.values;
     spec.cameras(width, height)?;
     std::fs::create_dir_all(dir).map_err(|e| Error::file(dir, e))?;
     let mut names = Vec::with_capacity(spec.views);

@@ -12,6 +12,7 @@
 
 use std::borrow::{Borrow, Cow};
 
+use ifslab::image::Image;
 use ifslab::loss::{ImageLoss, MsMse};
 use ifslab::model::segment::Pattern;
 use ifslab::render::Renderer;
@@ -351,11 +352,12 @@ impl PlaneLoss<f64> for SdfLoss {
 }
 
 impl SdfProblem {
-    /// The fit of `pattern`'s structure to `target` (ink in [0, 1], row-major, the view's
-    /// size), drawn to `depth` with width `sigma` pixels.
+    /// The fit of `pattern`'s structure to `target` (grey, the view's size, ink in [0, 1];
+    /// at the raster's f64, [`Image::widened`] from a picture), drawn to `depth` with width
+    /// `sigma` pixels.
     pub fn new(
         pattern: Pattern,
-        target: Vec<f64>,
+        target: Image<f64>,
         view: SdfView,
         depth: usize,
         sigma: f64,
@@ -369,14 +371,8 @@ impl SdfProblem {
                 format!("must be > 0 pixels, got {sigma}"),
             ));
         }
-        if target.len() != view.width * view.height {
-            return Err(Error::InvalidInput(format!(
-                "target has {} pixels, the view {}×{}",
-                target.len(),
-                view.width,
-                view.height
-            )));
-        }
+        target.expect_shape("the target", 1, view.width, view.height)?;
+        let target = target.values;
         let target_dist = if loss.distance > 0.0 {
             let side = view.width.max(view.height) as f64;
             Some(

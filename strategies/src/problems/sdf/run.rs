@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use argmin::core::State;
 use argmin::core::observers::Observe;
+use ifslab::image::Image;
 use ifslab::render::sdf::SdfView;
 
 use crate::driver::GradState;
@@ -102,7 +103,7 @@ pub fn at_sigma(cfg: &SdfConfig, sigma: f64) -> SdfConfig {
 /// The problem `cfg` describes for `target` (ink, `size × size`, seen as the unit square)
 /// whose strokes are `stroke` framed pixels wide, when that was measured (it sets σ with
 /// `stroke_sigma`).
-pub fn sdf_problem(cfg: &SdfConfig, target: Vec<f64>, stroke: Option<f64>) -> Result<SdfProblem> {
+pub fn sdf_problem(cfg: &SdfConfig, target: Image<f64>, stroke: Option<f64>) -> Result<SdfProblem> {
     let pattern = cfg.pattern()?;
     let sigma = match (cfg.stroke_sigma, stroke) {
         (true, Some(w)) if pattern.base().kind == PrimitiveKind::Segment => sigma_for_stroke(w),
@@ -209,7 +210,7 @@ fn start_kind(
 /// uninterrupted run.
 pub fn run_sdf(
     cfg: &SdfConfig,
-    target: Vec<f64>,
+    target: Image<f64>,
     stroke: Option<f64>,
     dir: &Path,
     resume: bool,
