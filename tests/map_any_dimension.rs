@@ -147,6 +147,26 @@ fn one_impl_has_exact_vjps_in_the_plane_and_in_space() {
     assert!(e.contains("map 2, parameter 1"), "{e}");
 }
 
+/// `renderer`'s reverse pass through `maps` against central differences (the loss must
+/// depend on them).
+fn trains<const D: usize, R>(name: &str, renderer: &R, maps: &[Homothety<D>])
+where
+    R: Renderer<Scene = [Homothety<D>], Pixel = f64>,
+{
+    let scene_at = |t: &[f64]| {
+        let mut m = maps.to_vec();
+        set_flat_params(&mut m, t).unwrap();
+        m
+    };
+    let theta = flat_params(maps);
+    let scale =
+        reverse_pass_matches_finite_differences(name, renderer, &theta, scene_at, 1e-7, 2e-4);
+    assert!(
+        scale > 1e-2,
+        "{name}: the loss should depend on the maps ({scale})"
+    );
+}
+
 fn splat_config() -> SplatConfig {
     SplatConfig {
         width: 32,
@@ -169,20 +189,7 @@ fn splat_config() -> SplatConfig {
 fn the_plane_splat_trains_it_and_draws_the_bits_of_the_affine_form() {
     let maps = plane_maps();
     let splat = Splat::<Homothety<2>, f64>::new(splat_config());
-    let scene_at = |t: &[f64]| {
-        let mut m = maps.clone();
-        set_flat_params(&mut m, t).unwrap();
-        m
-    };
-    let scale = reverse_pass_matches_finite_differences(
-        "2-D splat of homotheties",
-        &splat,
-        &flat_params(&maps),
-        scene_at,
-        1e-7,
-        2e-4,
-    );
-    assert!(scale > 1e-2, "the loss should depend on the maps ({scale})");
+    trains("2-D splat of homotheties", &splat, &maps);
 
     // The same maps as affine maps: the same trajectories, so the same image, bit for bit.
     let affine: Vec<Affine2> = maps
@@ -203,7 +210,6 @@ fn the_plane_splat_trains_it_and_draws_the_bits_of_the_affine_form() {
 
 #[test]
 fn the_multi_view_splat_trains_the_same_impl_in_space() {
-    let maps = space_maps();
     let cams = turntable(
         3,
         25.0,
@@ -227,18 +233,5 @@ fn the_multi_view_splat_trains_the_same_impl_in_space() {
         ..MultiViewConfig::default()
     };
     let splat = MultiViewSplat::<Homothety<3>, f64>::new(cfg, cams).unwrap();
-    let scene_at = |t: &[f64]| {
-        let mut m = maps.clone();
-        set_flat_params(&mut m, t).unwrap();
-        m
-    };
-    let scale = reverse_pass_matches_finite_differences(
-        "multi-view splat of homotheties",
-        &splat,
-        &flat_params(&maps),
-        scene_at,
-        1e-7,
-        2e-4,
-    );
-    assert!(scale > 1e-2, "the loss should depend on the maps ({scale})");
+    trains("multi-view splat of homotheties", &splat, &space_maps());
 }
