@@ -1,5 +1,11 @@
 //! A sweep expanded into its runs: every combination of axis values applied to the base
 //! config, validated, with a stable id (a hash of the resolved run config).
+//!
+//! `mod.rs` expands a sweep into its [`Plan`]; `axis.rs` applies an axis value to a config;
+//! `id.rs` gives each run its id.
+
+mod axis;
+mod id;
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -11,6 +17,10 @@ use sha2::{Digest, Sha256};
 use super::config::{AxisConfig, BaseConfig, SlurmConfig, SweepConfig};
 use crate::runs::RunConfig;
 pub use crate::runs::table::set_dotted;
+
+use axis::{Axis, flatten};
+use id::join_labels;
+pub use id::run_id;
 
 /// The config key of the output folder: sweeps choose the folder.
 const OUTPUT_KEY: &str = "output";
@@ -312,217 +322,4 @@ impl Plan {
         }
         s
     }
-}
-
-/// The stable id of a resolved run config: the first 16 hex digits of the SHA-256 of its
-/// canonical text (keys sorted, floats in shortest round-trip form), leaving out the
-/// [`OPERATIONAL_KEYS`]. File names under `sweep_dir` (the sweep file's folder, where its
-/// relative names are read from) are hashed relative to it, so a sweep and its committed
-/// results keep their ids wherever the checkout lies.
-pub fn run_id(resolved: &toml::Table, sweep_dir: &Path) -> String {
-    let mut t = resolved.clone();
-    for k in OPERATIONAL_KEYS {
-        t.remove(*k);
-    }
-    // A recipe only fills in the keys a config leaves out, and the resolved table spells
-    // them out: the `paper` key adds nothing to what such a run computes (and runs made
-    // before recipes existed keep their ids).
-    let problem = t
-        .get(crate::runs::table::PROBLEM_KEY)
-        .and_then(toml::Value::as_str)
-        .unwrap_or(crate::runs::table::DEFAULT_PROBLEM);
-    if RunConfig::HAS_RECIPES.contains(&problem) {
-        t.remove(ifslab_strategies::recipe::PAPER_KEY);
-    }
-    let mut prefix = sweep_dir.to_string_lossy().into_owned();
-    if !prefix.ends_with('/') {
-        prefix.push('/');
-    }
-    relative_strings(&mut t, &prefix);
-    let mut text = String::from("ifslab-run-v1\n");
-    canonical_table(&t, &mut text);
-    let digest = Sha256::digest(text.as_bytes());
-    digest[..8].iter().fold(String::new(), |mut s, b| {
-        let _ = write!(s, "{b:02x}");
-        s
-    })
-}
-
-/// Every string holding `prefix` (a folder with its trailing `/`) gets `@sweep/` instead.
-fn relative_strings(t: &mut toml::Table, prefix: &str) {
-    fn walk(v: &mut toml::Value, prefix: &str) {
-        match v {
-            toml::Value::String(s) if s.contains(prefix) => *s = s.replace(prefix, "@sweep/"),
-            toml::Value::Array(a) => a.iter_mut().for_each(|x| walk(x, prefix)),
-            toml::Value::Table(t) => t.iter_mut().for_each(|(_, x)| walk(x, prefix)),
-            _ => {}
-        }
-    }
-    t.iter_mut().for_each(|(_, x)| walk(x, prefix));
-}
-
-fn canonical_table(t: &toml::Table, out: &mut String) {
-    let mut keys: Vec<&String> = t.keys().collect();
-    keys.sort();
-    out.push('{');
-    for (i, k) in keys.into_iter().enumerate() {
-        if i > 0 {
-            out.push(',');
-        }
-        out.push_str(&serde_json::to_string(k).unwrap_or_default());
-        out.push(':');
-        canonical_value(&t[k], out);
-    }
-    out.push('}');
-}
-
-fn canonical_value(v: &toml::Value, out: &mut String) {
-    match v {
-        toml::Value::String(s) => out.push_str(&serde_json::to_string(s).unwrap_or_default()),
-        toml::Value::Integer(i) => {
-            let _ = write!(out, "{i}");
-        }
-        // `{:?}` is the shortest text that reads back as the same f64, with a `.` or `e`
-        // that keeps 1.0 apart from the integer 1.
-        toml::Value::Float(f) => {
-            let _ = write!(out, "{f:?}");
-        }
-        toml::Value::Boolean(b) => {
-            let _ = write!(out, "{b}");
-        }
-        toml::Value::Datetime(d) => {
-            let _ = write!(out, "\"{d}\"");
-        }
-        toml::Value::Array(a) => {
-            out.push('[');
-            for (i, x) in a.iter().enumerate() {
-                if i > 0 {
-                    out.push(',');
-                }
-                canonical_value(x, out);
-            }
-            out.push(']');
-        }
-        toml::Value::Table(t) => canonical_table(t, out),
-    }
-}
-
-fn join_labels(labels: &[(String, String)], sep: &str, with_names: bool) -> String {
-    labels
-        .iter()
-        .map(|(n, l)| {
-            if with_names {
-                format!("{n}={l}")
-            } else {
-                l.clone()
-            }
-        })
-        .collect::<Vec<_>>()
-        .join(sep)
-}
-
-/// An axis with its values resolved to (label, overrides).
-struct Axis {
-    name: String,
-    values: Vec<AxisValue>,
-}
-
-struct AxisValue {
-    label: String,
-    set: Vec<(String, toml::Value)>,
-}
-
-impl Axis {
-    fn resolve(a: &AxisConfig, here: &Path) -> crate::Result<Self> {
-        let name = a.display_name();
-        let mut values = Vec::new();
-        if let Some(vs) = &a.values {
-            let key = a.key.clone().unwrap_or_default();
-            for (i, v) in vs.iter().enumerate() {
-                let label = match &a.labels {
-                    Some(l) => l[i].clone(),
-                    None => label_of(v),
-                };
-                values.push(AxisValue {
-                    label,
-                    set: vec![(key.clone(), v.clone())],
-                });
-            }
-        } else if let Some(folder) = &a.folder {
-            let folder = here.join(folder);
-            let key = a.key.clone().unwrap_or_default();
-            let mut files: Vec<PathBuf> = std::fs::read_dir(&folder)
-                .io_context(&folder, || {
-                    format!("axis `{name}`: reading the folder {}", folder.display())
-                })?
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| {
-                    p.is_file()
-                        && p.extension().is_some_and(|e| {
-                            let e = e.to_string_lossy().to_ascii_lowercase();
-                            e == "png" || e == "jpg" || e == "jpeg"
-                        })
-                })
-                .collect();
-            files.sort();
-            if files.is_empty() {
-                bail!(
-                    "axis `{name}`: {} holds no .png or .jpg image",
-                    folder.display()
-                );
-            }
-            for f in files {
-                values.push(AxisValue {
-                    label: f
-                        .file_stem()
-                        .map_or_else(String::new, |s| s.to_string_lossy().into_owned()),
-                    set: vec![(key.clone(), f.to_string_lossy().into_owned().into())],
-                });
-            }
-        } else {
-            for v in &a.value {
-                if values.iter().any(|x: &AxisValue| x.label == v.label) {
-                    bail!("axis `{name}` has two values labelled `{}`", v.label);
-                }
-                values.push(AxisValue {
-                    label: v.label.clone(),
-                    set: flatten(&v.set),
-                });
-            }
-        }
-        for (i, v) in values.iter().enumerate() {
-            if values[..i].iter().any(|x| x.label == v.label) {
-                bail!(
-                    "axis `{name}` has two values labelled `{}`: give `labels`",
-                    v.label
-                );
-            }
-        }
-        Ok(Axis { name, values })
-    }
-}
-
-/// A value as a label: strings as they are, anything else as TOML.
-fn label_of(v: &toml::Value) -> String {
-    match v {
-        toml::Value::String(s) => s.clone(),
-        other => other.to_string(),
-    }
-}
-
-/// Overrides as (dotted key, value) pairs: nested tables are paths, so `strategy.kind =
-/// "adam"` and `"strategy.kind" = "adam"` both set one key and leave its siblings alone.
-pub fn flatten(t: &toml::Table) -> Vec<(String, toml::Value)> {
-    let mut out = Vec::new();
-    for (k, v) in t {
-        match v {
-            toml::Value::Table(inner) if !inner.is_empty() => {
-                for (ik, iv) in flatten(inner) {
-                    out.push((format!("{k}.{ik}"), iv));
-                }
-            }
-            other => out.push((k.clone(), other.clone())),
-        }
-    }
-    out
 }

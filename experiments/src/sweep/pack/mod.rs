@@ -11,6 +11,12 @@
 //! A packed run is a finished run: `collect` tables it (its loss curve from the packed
 //! columns), `sweep` skips it and `sweep --adopt X` takes it in as it takes a folder of `X/`;
 //! [`unpack`] writes the folders back. A run folder beside the pack wins over the packed copy.
+//!
+//! `mod.rs` holds the format and reads a pack ([`Pack`]); `columns.rs` cuts a run's log to its
+//! columns; `write.rs` packs folders and unpacks them.
+
+mod columns;
+mod write;
 
 use std::collections::{BTreeMap, HashSet};
 use std::io::{BufRead, BufReader, Write};
@@ -18,6 +24,10 @@ use std::path::{Path, PathBuf};
 
 use crate::error::{Context, IoContext, bail, bail_config};
 use serde::{Deserialize, Serialize};
+
+pub use columns::LogColumns;
+pub use write::{Packed, Unpacked, pack, unpack};
+use write::{is_text, walk};
 
 /// The format named in a pack's header line.
 pub const PACK_FORMAT: &str = "ifslab-runs/1";
@@ -43,95 +53,6 @@ struct Header {
     runs: usize,
     log_digits: usize,
     note: String,
-}
-
-/// A numeric CSV log as columns (`None`: an empty or non-numeric cell, NaN included).
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-pub struct LogColumns {
-    /// Column names, the iteration first.
-    pub columns: Vec<String>,
-    /// One list of values per column.
-    pub values: Vec<Vec<Option<f64>>>,
-}
-
-impl LogColumns {
-    /// Reads a CSV log with a header line; rows of the wrong width are skipped.
-    pub fn parse(text: &str) -> Option<LogColumns> {
-        let mut lines = text.lines();
-        let columns: Vec<String> = lines.next()?.split(',').map(str::to_owned).collect();
-        let mut values = vec![Vec::new(); columns.len()];
-        for l in lines {
-            let cells: Vec<&str> = l.split(',').collect();
-            if cells.len() != columns.len() {
-                continue;
-            }
-            for (col, c) in values.iter_mut().zip(cells) {
-                col.push(c.trim().parse::<f64>().ok().filter(|v| !v.is_nan()));
-            }
-        }
-        Some(LogColumns { columns, values })
-    }
-
-    /// The first column and the named ones that exist, the latter rounded to `digits`
-    /// significant digits.
-    pub fn compact(&self, keep: &[String], digits: usize) -> LogColumns {
-        let mut out = LogColumns {
-            columns: Vec::new(),
-            values: Vec::new(),
-        };
-        for (k, (name, vals)) in self.columns.iter().zip(&self.values).enumerate() {
-            if k == 0 {
-                out.columns.push(name.clone());
-                out.values.push(vals.clone());
-            } else if keep.contains(name) {
-                out.columns.push(name.clone());
-                out.values.push(
-                    vals.iter()
-                        .map(|v| v.map(|x| round_sig(x, digits)))
-                        .collect(),
-                );
-            }
-        }
-        out
-    }
-
-    /// The log as CSV again (missing cells as `NaN`, as the run wrote them).
-    pub fn to_csv(&self) -> String {
-        let mut s = self.columns.join(",");
-        s.push('\n');
-        let rows = self.values.first().map_or(0, Vec::len);
-        for i in 0..rows {
-            let cells: Vec<String> = self
-                .values
-                .iter()
-                .map(|c| c[i].map_or_else(|| "NaN".to_string(), |v| v.to_string()))
-                .collect();
-            s.push_str(&cells.join(","));
-            s.push('\n');
-        }
-        s
-    }
-
-    /// A column against the first (the iteration), where both are numbers and the value is
-    /// positive and finite (what a log-scale plot can show); `None` without such a point.
-    pub fn curve(&self, column: &str) -> Option<Vec<(f64, f64)>> {
-        let c = self.columns.iter().position(|n| n == column)?;
-        let pts: Vec<(f64, f64)> = self.values[0]
-            .iter()
-            .zip(&self.values[c])
-            .filter_map(|(x, y)| Some(((*x)?, (*y)?)))
-            .filter(|&(_, y)| y.is_finite() && y > 0.0)
-            .collect();
-        (!pts.is_empty()).then_some(pts)
-    }
-}
-
-/// `x` to `digits` significant digits.
-pub fn round_sig(x: f64, digits: usize) -> f64 {
-    if !x.is_finite() || x == 0.0 || digits == 0 {
-        return x;
-    }
-    format!("{x:.*e}", digits - 1).parse().unwrap_or(x)
 }
 
 /// One finished run in a pack.
@@ -239,38 +160,6 @@ impl PackedRun {
         }
         Ok(())
     }
-}
-
-fn is_text(rel: &str) -> bool {
-    let path = Path::new(rel);
-    path.extension()
-        .is_some_and(|e| TEXT_EXTENSIONS.contains(&e.to_string_lossy().as_ref()))
-        && path.file_name().is_none_or(|n| n != CHECKPOINT_FILE)
-}
-
-/// Files under `dir`, relative to `root` with `/` separators; dot files and folders (locks)
-/// left out.
-fn walk(root: &Path, dir: &Path, out: &mut Vec<String>) -> crate::Result<()> {
-    for e in std::fs::read_dir(dir).doing("reading", dir)? {
-        let p = e?.path();
-        if p.file_name()
-            .is_some_and(|n| n.to_string_lossy().starts_with('.'))
-        {
-            continue;
-        }
-        if p.is_dir() {
-            walk(root, &p, out)?;
-        } else {
-            let rel = p.strip_prefix(root).unwrap_or(&p);
-            out.push(
-                rel.components()
-                    .map(|c| c.as_os_str().to_string_lossy())
-                    .collect::<Vec<_>>()
-                    .join("/"),
-            );
-        }
-    }
-    Ok(())
 }
 
 /// The pack of a folder of runs: `X/` → `X.jsonl.gz`.
@@ -388,136 +277,6 @@ impl Pack {
     pub fn names(&self) -> HashSet<&str> {
         self.runs.iter().map(|r| r.name.as_str()).collect()
     }
-}
-
-/// Whether a folder holds a finished run: its `summary.json`, which every problem writes
-/// last of its own files (a sweep's `run.json` comes after it, but `ifslab run` folders
-/// have none).
-fn is_finished_folder(dir: &Path) -> bool {
-    dir.join("summary.json").is_file()
-}
-
-/// What [`pack`] did.
-#[derive(Debug, Default)]
-pub struct Packed {
-    /// The pack written.
-    pub path: PathBuf,
-    /// Runs taken from folders now.
-    pub added: usize,
-    /// Runs in the pack in all.
-    pub runs: usize,
-    /// Folders removed after the pack was read back and found equal.
-    pub removed: usize,
-    /// Folders left alone: not finished runs (partial, failed, other files).
-    pub skipped: Vec<PathBuf>,
-    /// Bytes of the pack.
-    pub bytes: u64,
-}
-
-/// Packs the finished run folders of `runs` (a sweep folder's `runs/`, or any folder of run
-/// folders) into `runs.jsonl.gz` beside it, added to the runs already packed there (a folder
-/// replaces its packed copy). With `remove`, the packed folders are deleted once the pack
-/// has been read back and holds each of them as packed.
-pub fn pack(runs: &Path, keep: &[String], remove: bool) -> crate::Result<Packed> {
-    let path = pack_path(runs);
-    let mut pack = Pack::beside(runs)?;
-    // Runs packed before checkpoints were left out lose theirs now.
-    for r in &mut pack.runs {
-        r.leave_out_checkpoints();
-    }
-    let mut dirs: Vec<PathBuf> = std::fs::read_dir(runs)
-        .doing("reading", runs)?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.is_dir())
-        .filter(|p| {
-            !p.file_name()
-                .is_some_and(|n| n.to_string_lossy().starts_with('.'))
-        })
-        .collect();
-    dirs.sort();
-    let mut out = Packed {
-        path: path.clone(),
-        ..Packed::default()
-    };
-    let mut fresh = Vec::new();
-    for d in dirs {
-        if !is_finished_folder(&d) {
-            out.skipped.push(d);
-            continue;
-        }
-        let run = PackedRun::from_folder(&d, keep)?;
-        pack.runs.retain(|r| r.name != run.name);
-        pack.runs.push(run.clone());
-        fresh.push((d, run));
-    }
-    out.added = fresh.len();
-    pack.write(&path)?;
-    let back = Pack::read(&path)?;
-    out.runs = back.runs.len();
-    out.bytes = std::fs::metadata(&path)?.len();
-    if remove {
-        for (d, run) in &fresh {
-            if back.get(&run.name) != Some(run) {
-                bail!(
-                    "{} read back differs from the folder {}: nothing removed after it",
-                    path.display(),
-                    d.display()
-                );
-            }
-            std::fs::remove_dir_all(d).doing("removing", d)?;
-            out.removed += 1;
-        }
-    }
-    Ok(out)
-}
-
-/// What [`unpack`] did.
-#[derive(Debug, Default)]
-pub struct Unpacked {
-    /// The folders of the runs asked for, written now or there already.
-    pub folders: Vec<PathBuf>,
-    /// How many were written now.
-    pub written: usize,
-}
-
-/// Writes the folders of packed runs back into `runs/` (those named in `only`, else all),
-/// leaving folders that exist alone.
-pub fn unpack(runs: &Path, only: &[String]) -> crate::Result<Unpacked> {
-    let path = pack_path(runs);
-    if !path.is_file() {
-        bail!(
-            "{} has no pack beside it ({})",
-            runs.display(),
-            path.display()
-        );
-    }
-    let pack = Pack::read(&path)?;
-    for name in only {
-        if pack.get(name).is_none() {
-            bail!("{} has no run `{name}`", path.display());
-        }
-    }
-    let mut out = Unpacked::default();
-    for r in &pack.runs {
-        if !only.is_empty() && !only.contains(&r.name) {
-            continue;
-        }
-        let dir = runs.join(&r.name);
-        out.folders.push(dir.clone());
-        if dir.exists() {
-            continue;
-        }
-        // Written aside and renamed, so a folder that exists is a whole run.
-        let tmp = runs.join(format!(".{}.unpacking", r.name));
-        if tmp.exists() {
-            std::fs::remove_dir_all(&tmp).doing("clearing", &tmp)?;
-        }
-        r.write_folder(&tmp)?;
-        std::fs::rename(&tmp, &dir)
-            .io_context(&tmp, || format!("moving {} into place", tmp.display()))?;
-        out.written += 1;
-    }
-    Ok(out)
 }
 
 #[cfg(test)]
