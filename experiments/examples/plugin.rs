@@ -186,10 +186,6 @@ impl ImageModel for DiagonalModel {
         ImageModel::project(self, &mut theta);
         Ok(theta)
     }
-
-    fn to_affine(&self, maps: &[Affine2]) -> Result<Vec<Affine2>> {
-        Ok(maps.to_vec())
-    }
 }
 
 // ---- Using them -------------------------------------------------------------------------

@@ -10,6 +10,7 @@ use common::ifslab_in;
 use ifslab::model::{Affine2, IfsCode};
 use ifslab_experiments::progress::Silent;
 use ifslab_experiments::suite::{self, SuiteSpec, Tier};
+use ifslab_strategies::problems::image::Fitted;
 
 fn smoke(dir: &Path, codes: usize) -> suite::Manifest {
     suite::make(&SuiteSpec::paper(codes, 7, Tier::Smoke), dir, &Silent).unwrap()
@@ -74,14 +75,28 @@ fn scores_depend_on_the_shape_not_on_where_the_code_puts_it() {
     let maps = code.affine2().unwrap();
     let probs = code.evaluation_probabilities().unwrap();
 
-    let same = suite::score_maps(tmp.path(), &m, 0, &maps, &probs, None).unwrap();
+    let same = suite::score_maps(
+        tmp.path(),
+        &m,
+        0,
+        &Fitted::with_probabilities(maps.clone(), probs.clone()).unwrap(),
+        None,
+    )
+    .unwrap();
     assert_eq!(same.views.len(), 7);
     assert!(same.iou == 1.0 && same.f1 == 1.0, "{same:?}");
 
     // Moved and scaled by 3: every view is found again (up to rounding; views stored in
     // the code's own coordinates would miss all six patches).
     let moved = conjugate(&maps, 3.0, [5.0, -2.0]);
-    let s = suite::score_maps(tmp.path(), &m, 0, &moved, &probs, None).unwrap();
+    let s = suite::score_maps(
+        tmp.path(),
+        &m,
+        0,
+        &Fitted::with_probabilities(moved, probs.clone()).unwrap(),
+        None,
+    )
+    .unwrap();
     for v in &s.views {
         assert!(v.iou > 0.9, "{} {v:?}", v.name);
     }

@@ -160,6 +160,10 @@ impl Map<2> for Similitude2 {
         let z = self.rotate(self.flip(p));
         [self.s * z[0] + self.t[0], self.s * z[1] + self.t[1]]
     }
+
+    fn affine(&self) -> Option<([[f64; 2]; 2], [f64; 2])> {
+        Map::<2>::affine(&self.to_affine())
+    }
 }
 
 impl DiffMap<2> for Similitude2 {

@@ -11,7 +11,9 @@ use ifslab_strategies::driver::Params;
 use ifslab_strategies::optim::adam::AdamConfig;
 use ifslab_strategies::optim::hybrid::{ColdHybridConfig, HybridConfig};
 use ifslab_strategies::optim::noisy::NoisyConfig;
-use ifslab_strategies::problems::image::{InitKind, InversionConfig, Polarity, StrategyConfig};
+use ifslab_strategies::problems::image::{
+    FIT_FILE, InitKind, InversionConfig, Polarity, StrategyConfig,
+};
 
 use ifslab_experiments::runs::RunConfig;
 use ifslab_experiments::runs::inversion::{CONFIG_FILE, run_and_report};
@@ -166,7 +168,12 @@ fn report(cfg: &InversionConfig, dir: &Path, resume: bool) -> anyhow::Result<()>
         s.work(),
         s.seconds,
         s.scores(),
-        dir.join("code.json").display()
+        // The affine code file, or the fit file of a family that is not affine.
+        [dir.join("code.json"), dir.join(FIT_FILE)]
+            .into_iter()
+            .find(|p| p.is_file())
+            .unwrap_or_else(|| dir.join("code.json"))
+            .display()
     );
     Ok(())
 }

@@ -10,8 +10,8 @@ use crate::error::{Context, bail};
 use ifslab::model::IfsCode;
 use ifslab::model::segment::PatternFile;
 use ifslab_strategies::problems::image::{
-    Directions, FRAMED_TARGET_FILE, ImageProblem, Landscape, LandscapeConfig, TARGET_READING_FILE,
-    TargetReading, landscape, load_framed_target,
+    Directions, FIT_FILE, FRAMED_TARGET_FILE, FitFile, ImageProblem, Landscape, LandscapeConfig,
+    TARGET_READING_FILE, TargetReading, landscape, load_framed_target,
 };
 use ifslab_strategies::problems::sdf::{SdfConfig, sdf_landscape, sdf_problem};
 
@@ -83,23 +83,31 @@ pub fn run_landscape(
             other.problem()
         ),
     };
+    let target = run_target(&cfg, run_dir)?;
+    let problem = ImageProblem::from_config(&cfg, target)?;
+    let fit_path = run_dir.join(FIT_FILE);
     let maps = match centre {
-        Centre::Recovered => IfsCode::load(run_dir.join("code.json"))
-            .with_context(|| format!("{} has no recovered code", run_dir.display()))?
-            .affine2()?,
+        // The run's own θ where its fit file keeps it (any family, exactly as fitted).
+        Centre::Recovered if fit_path.is_file() => None,
+        Centre::Recovered => Some(
+            IfsCode::load(run_dir.join("code.json"))
+                .with_context(|| format!("{} has no recovered code", run_dir.display()))?
+                .affine2()?,
+        ),
         Centre::Truth => {
             let Some(spec) = cfg.target.code.as_deref() else {
                 bail!("--at truth needs a run whose target is a code, not an image");
             };
-            resolve_code(spec)?.affine2()?
+            Some(resolve_code(spec)?.affine2()?)
         }
     };
-    let target = run_target(&cfg, run_dir)?;
-    let problem = ImageProblem::from_config(&cfg, target)?;
-    let theta = problem
-        .model()
-        .encode(&maps)
-        .context("the centre code cannot be expressed in the run's model")?;
+    let theta = match maps {
+        Some(maps) => problem
+            .model()
+            .encode(&maps)
+            .context("the centre code cannot be expressed in the run's model")?,
+        None => FitFile::load(&fit_path)?.theta,
+    };
     lc.validate(theta.len())?;
     let cells = (lc.resolution * lc.resolution) as u64;
     progress.start("landscape", cells);

@@ -27,6 +27,7 @@ use std::path::Path;
 use crate::error::{Context, IoContext};
 use ifslab::model::IfsCode;
 use ifslab::render::{FIT_FILL, fit_window};
+use ifslab_strategies::problems::image::FIT_FILE;
 
 pub use flame::FlameTiles;
 pub use server::{RunningServer, ServeOptions, TileStats, serve};
@@ -224,6 +225,13 @@ impl Site {
     /// side by side, and `loss.png`.
     fn run_folder(dir: &Path, tiles: TileOptions) -> crate::Result<Self> {
         let code_path = dir.join("code.json");
+        if !code_path.is_file() && dir.join(FIT_FILE).is_file() {
+            crate::error::bail!(
+                "{} holds a fit of maps that are not affine ({FIT_FILE}, no code.json): the \
+                 tile server draws affine codes; `ifslab redraw` draws the run's pictures",
+                dir.display()
+            );
+        }
         if !code_path.is_file() {
             crate::error::bail!(
                 "{} is a folder without code.json: give a finished run folder (ifslab invert \

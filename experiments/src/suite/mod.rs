@@ -25,9 +25,11 @@
 
 mod make;
 mod score;
+mod spec;
 
-pub use make::{CodeEntry, Manifest, SuiteSpec, Tier, ViewEntry, load, make};
+pub use make::make;
 pub use score::{SuiteScore, ViewScore, score_code, score_maps};
+pub use spec::{CodeEntry, Manifest, SuiteSpec, Tier, ViewEntry, load};
 
 /// The manifest's file name inside a suite folder.
 pub const MANIFEST: &str = "suite.json";

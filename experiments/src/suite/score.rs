@@ -5,12 +5,12 @@ use std::path::Path;
 use crate::error::Context;
 use ifslab::loss::lpips::{LPIPS_MIN_SIDE, Lpips};
 use ifslab::metrics::{EVAL_BORDER_FRACTION, cropped_metrics};
-use ifslab::model::{Affine2, IfsCode};
+use ifslab::model::IfsCode;
 use ifslab::render::image_io::load_grey;
-use ifslab::render::render;
+use ifslab_strategies::problems::image::{Fitted, Recovered};
 use serde::{Deserialize, Serialize};
 
-use super::make::render_view;
+use super::make::view_config;
 use super::{CodeEntry, Manifest, PSNR_CAP};
 
 /// The metrics of one view.
@@ -76,11 +76,11 @@ pub fn score_code(
     net: Option<&Lpips>,
 ) -> crate::Result<SuiteScore> {
     let maps = code.affine2().context("a suite scores 2-D codes")?;
-    let probs = code.evaluation_probabilities()?;
-    score_maps(dir, manifest, index, &maps, &probs, net)
+    let fit = Fitted::with_probabilities(maps, code.evaluation_probabilities()?)?;
+    score_maps(dir, manifest, index, &fit, net)
 }
 
-/// Renders `maps` (with `probs`) at every view of entry `index` — its own full-view window
+/// Renders `fit` (maps of any family, [`Recovered`]) at every view of entry `index` — its own full-view window
 /// fitted the way an inversion frames it, each patch at the same fractions of that window —
 /// and scores each against the stored truth: the full view with the paper's border crop
 /// (12.5% a side, empty by construction), the patches whole.
@@ -88,8 +88,7 @@ pub fn score_maps(
     dir: &Path,
     manifest: &Manifest,
     index: usize,
-    maps: &[Affine2],
-    probs: &[f64],
+    fit: &dyn Recovered,
     net: Option<&Lpips>,
 ) -> crate::Result<SuiteScore> {
     let started = std::time::Instant::now();
@@ -97,7 +96,7 @@ pub fn score_maps(
     let spec = &manifest.spec;
     let size = spec.tier.size();
     let net = net.filter(|_| size - 2 * border(size) >= LPIPS_MIN_SIDE);
-    let full = render(maps, probs, &spec.render_config(entry.render_seed), None)?;
+    let full = fit.render(&spec.render_config(entry.render_seed))?;
     let window = full.stats.window;
     let mut views = Vec::with_capacity(entry.views.len());
     for v in &entry.views {
@@ -115,15 +114,13 @@ pub fn score_maps(
         let pred = if v.factor == 1.0 && v.center == [0.5, 0.5] {
             full.values.clone()
         } else {
-            render_view(
+            fit.render(&view_config(
                 spec,
-                maps,
-                probs,
                 &window,
                 v.factor,
                 v.center,
                 entry.render_seed,
-            )?
+            ))?
             .image
             .values
         };

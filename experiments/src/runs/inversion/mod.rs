@@ -23,9 +23,9 @@ use ifslab::render::image_io::{BitDepth, save_grey_png};
 use ifslab::render::{RenderConfig, View, Zoom, render};
 use ifslab_strategies::driver::plan::{CHECKPOINT_FILE, START_FILE};
 use ifslab_strategies::problems::image::{
-    BestOfStarts, FRAMED_TARGET_FILE, InitKind, InversionConfig, InversionOutcome,
-    TARGET_READING_FILE, TargetReading, ensure_new_run_dir, load_framed_picture_with,
-    load_framed_target, load_target, run_inversion, save_framed_target,
+    BestOfStarts, FIT_FILE, FRAMED_TARGET_FILE, FitFile, Fitted, InitKind, InversionConfig,
+    InversionOutcome, Recovered, TARGET_READING_FILE, TargetReading, ensure_new_run_dir,
+    load_framed_picture_with, load_framed_target, load_target, run_inversion, save_framed_target,
 };
 use plotters::prelude::*;
 use serde::Serialize;
@@ -35,9 +35,7 @@ use crate::plot::{Series, ensure_font, line_chart};
 use crate::progress::{Progress, ProgressObserver};
 use crate::runs::legs::{LegProgress, leg_resumes, refuse_existing_legs};
 
-pub use outputs::{
-    TRUTH_SIZE, TruthScore, interesting_point, loss_plot, redraw_pictures, truth_score, zoom_strip,
-};
+pub use outputs::{TRUTH_SIZE, TruthScore, loss_plot, redraw_pictures, truth_score, zoom_strip};
 use outputs::{ZOOM_STRIP_FILE, draw_zoom_strip, save_square_grey, write_outputs};
 use target::{Framed, eval_config, new_run_dir};
 pub use target::{ground_truth, prepare_target, run_target};
@@ -128,8 +126,9 @@ pub fn leg_folder(i: usize) -> String {
 }
 
 /// The files of the kept whole run that a best-of run shows where a single run's would be.
-const KEPT_FILES: [&str; 8] = [
+const KEPT_FILES: [&str; 9] = [
     "code.json",
+    FIT_FILE,
     "render.png",
     ZOOM_STRIP_FILE,
     "loss.png",
@@ -346,21 +345,19 @@ fn run_one(
     let suite = match (&cfg.target.suite, cfg.target.index) {
         (Some(suite_dir), Some(index)) => {
             let manifest = crate::suite::load(suite_dir)?;
-            let probs = IfsCode::from_affine2(None, &outcome.maps)?.evaluation_probabilities()?;
             let net = Lpips::try_load_default()?;
             Some(crate::suite::score_maps(
                 suite_dir,
                 &manifest,
                 index,
-                &outcome.maps,
-                &probs,
+                outcome.result.as_ref(),
                 net.as_ref(),
             )?)
         }
         _ => None,
     };
     let truth = match &cfg.target.truth {
-        Some(spec) => Some(truth_score(spec, &outcome.maps, cfg.seed, dir)?),
+        Some(spec) => Some(truth_score(spec, outcome.result.as_ref(), cfg.seed, dir)?),
         None => None,
     };
     let summary = Summary {

@@ -1,6 +1,8 @@
 //! What a finished image run shows: the recovered code file, its render and zoom strip, the
 //! loss curve, its metrics against the ground truth, and its score against the code that
-//! drew the target.
+//! drew the target — each drawn from the run's result as its model gives it
+//! ([`Recovered`]), so a map family that is not affine shows the same files (without the
+//! affine code file: its fit file is what it is drawn again from).
 
 use super::*;
 
@@ -27,11 +29,11 @@ pub struct TruthScore {
     pub ssim: f64,
 }
 
-/// [`TruthScore`] of `maps` against the code `spec` names; writes the truth's full view as
-/// `truth.png` into `dir`.
+/// [`TruthScore`] of the recovered `fit` against the code `spec` names; writes the truth's
+/// full view as `truth.png` into `dir`.
 pub fn truth_score(
     spec: &str,
-    maps: &[Affine2],
+    fit: &dyn Recovered,
     seed: u64,
     dir: &Path,
 ) -> crate::Result<TruthScore> {
@@ -42,8 +44,7 @@ pub fn truth_score(
     let cfg = eval_config(TRUTH_SIZE, seed);
     let truth = render(&truth_maps, &code.evaluation_probabilities()?, &cfg, None)?;
     truth.save_png(&dir.join("truth.png"), BitDepth::Eight, false)?;
-    let probs = IfsCode::from_affine2(None, maps)?.evaluation_probabilities()?;
-    let ours = render(maps, &probs, &cfg, None)?;
+    let ours = fit.render(&cfg)?;
     let m = paper_metrics::<f32>(&ours.values, &truth.values, TRUTH_SIZE, TRUTH_SIZE, None)?;
     Ok(TruthScore {
         iou: m.iou,
@@ -63,17 +64,35 @@ pub(super) fn write_outputs(
     strip: bool,
 ) -> crate::Result<(ImageMetrics, Option<String>)> {
     let size = cfg.target.size;
-    let mut code = IfsCode::from_affine2(Some("recovered"), &out.maps)
-        .context("the recovered code failed validation")?;
-    let probs = code.evaluation_probabilities()?;
-    let final_render = render(&out.maps, &probs, &eval_config(size, cfg.seed), None)?;
-    code.framing = Some(final_render.stats.window);
-    code.meta
-        .insert("strategy".into(), cfg.strategy.name().into());
-    code.meta.insert("iterations".into(), out.iterations.into());
-    code.meta.insert("final_loss".into(), out.final_loss.into());
-    code.meta.insert("seed".into(), cfg.seed.into());
-    code.save(dir.join("code.json"))?;
+    let fit = out.result.as_ref();
+    if !fit.contractive() {
+        crate::error::bail!(
+            "the recovered code failed validation: a map of family `{}` does not contract",
+            cfg.model.family
+        );
+    }
+    let final_render = fit.render(&eval_config(size, cfg.seed))?;
+    let mut meta = serde_json::Map::new();
+    meta.insert("strategy".into(), cfg.strategy.name().into());
+    meta.insert("iterations".into(), out.iterations.into());
+    meta.insert("final_loss".into(), out.final_loss.into());
+    meta.insert("seed".into(), cfg.seed.into());
+    // θ with the model that decodes it, for every family; the affine code file beside it
+    // where the maps are affine (what other programs read).
+    FitFile {
+        model: cfg.model.clone(),
+        theta: out.theta.clone(),
+        framing: Some(final_render.stats.window),
+        meta: meta.clone(),
+    }
+    .save(&dir.join(FIT_FILE))?;
+    if let Some(maps) = fit.affine() {
+        let mut code = IfsCode::from_affine2(Some("recovered"), maps)
+            .context("the recovered code failed validation")?;
+        code.framing = Some(final_render.stats.window);
+        code.meta = meta;
+        code.save(dir.join("code.json"))?;
+    }
     final_render.save_png(&dir.join("render.png"), BitDepth::Eight, false)?;
     let truth = ground_truth(cfg, target)?;
     if cfg.target.code.is_some() || cfg.target.suite.is_some() {
@@ -83,8 +102,7 @@ pub(super) fn write_outputs(
     let metrics = paper_metrics::<f32>(&final_render.values, &truth, size, size, net.as_ref())?;
     if strip {
         zoom_strip(
-            &out.maps,
-            &probs,
+            fit,
             &final_render.stats.window,
             &dir.join(ZOOM_STRIP_FILE),
             cfg.seed,
@@ -94,36 +112,64 @@ pub(super) fn write_outputs(
     Ok((metrics, lpips_metric_note))
 }
 
-/// The recovered code of the run in `dir` (`code.json`): its maps, evaluation probabilities
-/// and the seed of the run that found it (`cfg.seed` where the file does not say).
-pub(super) fn recovered_code(
-    dir: &Path,
-    seed: u64,
-) -> crate::Result<(IfsCode, Vec<Affine2>, Vec<f64>, u64)> {
-    let code_path = dir.join("code.json");
-    let code = IfsCode::load(&code_path)
-        .with_context(|| format!("loading the recovered code {}", code_path.display()))?;
-    let maps = code
-        .affine2()
-        .with_context(|| format!("{} must be a 2-D code", code_path.display()))?;
-    let probs = code.evaluation_probabilities()?;
-    // A best-of run keeps one of several runs at seeds of their own; the code file says which.
-    let seed = code
-        .meta
-        .get("seed")
-        .and_then(|v| v.as_u64())
-        .unwrap_or(seed);
-    Ok((code, maps, probs, seed))
+/// The result of the finished run in `dir`, as it was recovered.
+pub(super) struct RunResult {
+    /// The maps, drawable.
+    pub(super) fit: Box<dyn Recovered>,
+    /// The window of the run's evaluation render, where the file keeps it.
+    pub(super) framing: Option<Window>,
+    /// The seed of the run that found it (`cfg.seed` where the file does not say: a best-of
+    /// run keeps one of several runs at seeds of their own).
+    pub(super) seed: u64,
+    /// The file it was read from.
+    pub(super) file: PathBuf,
 }
 
-/// Draws the zoom strip of the finished run in `dir` from its `code.json` (its framing and
+/// The recovered result of the run in `dir`: its affine code file (`code.json`, what
+/// affine runs and run folders from before fit files keep), or else its fit file (θ and
+/// the model family that decodes it, `fit.json`).
+pub(super) fn recovered_code(dir: &Path, seed: u64) -> crate::Result<RunResult> {
+    let code_path = dir.join("code.json");
+    if code_path.is_file() || !dir.join(FIT_FILE).is_file() {
+        let code = IfsCode::load(&code_path)
+            .with_context(|| format!("loading the recovered code {}", code_path.display()))?;
+        let maps = code
+            .affine2()
+            .with_context(|| format!("{} must be a 2-D code", code_path.display()))?;
+        let fit = Fitted::with_probabilities(maps, code.evaluation_probabilities()?)?;
+        let seed = code
+            .meta
+            .get("seed")
+            .and_then(|v| v.as_u64())
+            .unwrap_or(seed);
+        return Ok(RunResult {
+            fit: Box::new(fit),
+            framing: code.framing,
+            seed,
+            file: code_path,
+        });
+    }
+    let fit_path = dir.join(FIT_FILE);
+    let file = FitFile::load(&fit_path)?;
+    let fit = file
+        .recovered()
+        .with_context(|| format!("decoding the fit {}", fit_path.display()))?;
+    Ok(RunResult {
+        fit,
+        framing: file.framing,
+        seed: file.seed().unwrap_or(seed),
+        file: fit_path,
+    })
+}
+
+/// Draws the zoom strip of the finished run in `dir` from its result (its framing and
 /// seed), as [`write_outputs`] would have.
 pub(super) fn draw_zoom_strip(dir: &Path) -> crate::Result<()> {
-    let (code, maps, probs, seed) = recovered_code(dir, 0)?;
-    let window = code
+    let r = recovered_code(dir, 0)?;
+    let window = r
         .framing
-        .with_context(|| format!("{} has no framing", dir.join("code.json").display()))?;
-    zoom_strip(&maps, &probs, &window, &dir.join(ZOOM_STRIP_FILE), seed)
+        .with_context(|| format!("{} has no framing", r.file.display()))?;
+    zoom_strip(r.fit.as_ref(), &window, &dir.join(ZOOM_STRIP_FILE), r.seed)
 }
 
 /// Writes a `size × size` grey picture (values in [0, 1]) as an 8-bit PNG.
@@ -139,16 +185,18 @@ pub(super) fn save_square_grey(path: &Path, values: &[f32], size: usize) -> crat
     Ok(())
 }
 
-/// Draws a finished run's pictures again from its config and `code.json` — a folder
+/// Draws a finished run's pictures again from its config and its result (`code.json`, or
+/// `fit.json` for a family that is not affine) — a folder
 /// written back from a pack, say ([`crate::sweep::pack`]): `render.png`, `target.png`,
 /// `truth.png` (code and suite targets, or the `target.truth` code), `zoom_strip.png`, and
 /// `loss.png` where the folder has a `log.csv`. The renders are seeded as the run's were, so
 /// they are its pictures. Returns the files written.
 pub fn redraw_pictures(cfg: &InversionConfig, dir: &Path) -> crate::Result<Vec<PathBuf>> {
     let size = cfg.target.size;
-    let (_, maps, probs, seed) = recovered_code(dir, cfg.seed)?;
+    let RunResult { fit, seed, .. } = recovered_code(dir, cfg.seed)?;
+    let fit = fit.as_ref();
     let mut written = Vec::new();
-    let final_render = render(&maps, &probs, &eval_config(size, seed), None)?;
+    let final_render = fit.render(&eval_config(size, seed))?;
     final_render.save_png(&dir.join("render.png"), BitDepth::Eight, false)?;
     written.push(dir.join("render.png"));
     let target = run_target(cfg, dir)?.values;
@@ -160,12 +208,11 @@ pub fn redraw_pictures(cfg: &InversionConfig, dir: &Path) -> crate::Result<Vec<P
         written.push(dir.join("truth.png"));
     }
     if let Some(spec) = &cfg.target.truth {
-        truth_score(spec, &maps, seed, dir)?;
+        truth_score(spec, fit, seed, dir)?;
         written.push(dir.join("truth.png"));
     }
     zoom_strip(
-        &maps,
-        &probs,
+        fit,
         &final_render.stats.window,
         &dir.join(ZOOM_STRIP_FILE),
         seed,
@@ -204,26 +251,12 @@ pub(super) fn lpips_for_metrics(size: usize) -> crate::Result<(Option<Lpips>, Op
     })
 }
 
-/// A point on the attractor with detail around it: the fixed point of `f₀∘f₁`.
-pub fn interesting_point(maps: &[Affine2]) -> Option<[f64; 2]> {
-    match maps {
-        [a, b, ..] => a.compose(b).fixed_point(),
-        [a] => a.fixed_point(),
-        [] => None,
-    }
-}
-
-/// Renders 1×, 4×, 16×, 64× views around an interesting point side by side, with captions.
-pub fn zoom_strip(
-    maps: &[Affine2],
-    probs: &[f64],
-    base: &Window,
-    path: &Path,
-    seed: u64,
-) -> crate::Result<()> {
+/// Renders 1×, 4×, 16×, 64× views of `fit` around a point with detail
+/// ([`Recovered::detail_point`]) side by side, with captions.
+pub fn zoom_strip(fit: &dyn Recovered, base: &Window, path: &Path, seed: u64) -> crate::Result<()> {
     const PANEL: u32 = 256;
     const CAPTION: u32 = 28;
-    let center = interesting_point(maps).unwrap_or_else(|| base.center());
+    let center = fit.detail_point().unwrap_or_else(|| base.center());
     let factors = [1.0, 4.0, 16.0, 64.0];
     let mut panels = Vec::new();
     for &f in &factors {
@@ -245,7 +278,7 @@ pub fn zoom_strip(
             deep_zoom: true,
             ..RenderConfig::default()
         };
-        panels.push(render(maps, probs, &cfg, None)?);
+        panels.push(fit.render(&cfg)?);
     }
     let w = PANEL * 4 + 3 * 6;
     let h = PANEL + CAPTION;

@@ -49,10 +49,6 @@ pub trait ImageModel: Send + Sync + 'static {
 
     /// θ for a start given as affine maps (the closest maps of the model).
     fn encode(&self, start: &[Affine2]) -> Result<Vec<f64>>;
-
-    /// The maps as affine maps, for the evaluation renderer and the code file; an error for
-    /// maps that are not affine.
-    fn to_affine(&self, maps: &[Self::Map]) -> Result<Vec<Affine2>>;
 }
 
 /// How the differentiable renderer's chaos game picks maps.
@@ -116,22 +112,13 @@ impl ImageRendering {
         }
     }
 
-    /// The splat that draws `maps` (of `model`) at `at`: σ of the schedule, the rule's map
+    /// The splat that draws `maps` at `at`: σ of the schedule, the rule's map
     /// probabilities.
-    pub fn splat<IM: ImageModel>(
-        &self,
-        model: &IM,
-        maps: &[IM::Map],
-        at: Moment,
-    ) -> Result<Splat<IM::Map, f32>> {
+    pub fn splat<M: AffinePart>(&self, maps: &[M], at: Moment) -> Result<Splat<M, f32>> {
         let probs = match self.probabilities {
             MapProbabilities::Uniform => None,
             MapProbabilities::Determinant => {
-                let dets: Vec<f64> = model
-                    .to_affine(maps)?
-                    .iter()
-                    .map(|m| m.det().abs())
-                    .collect();
+                let dets: Vec<f64> = maps.iter().map(|m| m.affine_part().det().abs()).collect();
                 // ∝ |det| with no floor; all-degenerate maps fall back to uniform.
                 (dets.iter().sum::<f64>() > 0.0)
                     .then(|| ProbabilityRule::Determinant { floor: 0.0 }.resolve(&dets))
@@ -144,13 +131,8 @@ impl ImageRendering {
     /// [`ImageRendering::splat`] and its chaos game's seed at `at`: stream `at.stream()` of
     /// the run's seed, as the run's [`Sampler`](ifslab::render::Sampler) gives it to the
     /// instance.
-    pub fn drawn<IM: ImageModel>(
-        &self,
-        model: &IM,
-        maps: &[IM::Map],
-        at: Moment,
-    ) -> Result<(Splat<IM::Map, f32>, u64)> {
-        let renderer = self.splat(model, maps, at)?;
+    pub fn drawn<M: AffinePart>(&self, maps: &[M], at: Moment) -> Result<(Splat<M, f32>, u64)> {
+        let renderer = self.splat(maps, at)?;
         let seed = renderer.sampling(maps, self.seed, at.stream());
         Ok((renderer, seed))
     }
@@ -195,11 +177,7 @@ impl<IM: ImageModel> SceneModel for SplatModel<'_, IM> {
     }
 
     fn renderer(&self, scene: &Self::Scene, at: Moment) -> Result<Cow<'_, Self::Renderer>> {
-        Ok(Cow::Owned(self.rendering.splat(
-            self.model,
-            &scene.maps,
-            at,
-        )?))
+        Ok(Cow::Owned(self.rendering.splat(&scene.maps, at)?))
     }
 
     /// A fresh chaos game every call: the iteration, or the annealing candidate's stream.
@@ -334,7 +312,7 @@ pub fn evaluate<IM: ImageModel>(
     let (rendering, objective) = (model.rendering, model.objective);
     if splat::gpu_route(&rendering.splat, objective, rendering.clamp).is_ok() {
         let maps = model.model.decode(theta)?;
-        let (renderer, seed) = rendering.drawn(model.model, &maps, at)?;
+        let (renderer, seed) = rendering.drawn(&maps, at)?;
         let (b, g) = splat::objective_and_grad(
             &renderer.cfg,
             &maps,

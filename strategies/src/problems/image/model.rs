@@ -10,14 +10,18 @@
 //! type reaches every strategy, checkpoint, resume and `ifslab run` by one entry in
 //! [`MODELS`]. Models are named in a config by `[model] family = "…"`.
 //!
-//! Two families ship: `affine` (general affine maps under a [`Parameterisation`], the paper's
-//! model) and `similitude` (direct similitudes `x ↦ s·R(φ)·x + t`, θ = (s, φ, tₓ, t_y) per
-//! map — the worked example of adding a map type: [`SimilitudeModel`] is ~60 lines).
+//! Three families ship: `affine` (general affine maps under a [`Parameterisation`], the
+//! paper's model), `similitude` (direct similitudes `x ↦ s·R(φ)·x + t`, θ = (s, φ, tₓ, t_y)
+//! per map — the worked example of adding a map type: [`SimilitudeModel`] is ~60 lines) and
+//! `flame` (flam3 transforms with the `linear` and `sinusoidal` variations, [`FlameModel`]:
+//! maps that are not affine, whose runs show the same outputs from their fit file,
+//! [`result`](super::result)).
 
 use candle_core::Tensor;
 use ifslab::loss::{LossBreakdown, Objective};
 use ifslab::model::diff_map::Similitude2;
-use ifslab::model::{Affine2, Parameterisation};
+use ifslab::model::flame::{SmoothXform, Variation, VariationKind, Xform};
+use ifslab::model::{Affine2, Map, Parameterisation};
 use ifslab::render::Renderer;
 use ifslab::render::splat;
 
@@ -30,6 +34,7 @@ use crate::problems::image::instance::{self, ImageRendering, splat_problem};
 // The trait a model implements and the probability rule live with the instance they
 // parameterise; they keep their paths here.
 pub use crate::problems::image::instance::{ImageModel, MapProbabilities};
+use crate::problems::image::result::{Fitted, Recovered};
 use crate::problems::render_problem::Moment;
 
 /// Any [`ImageModel`], its map type erased: what the image problem holds. Implemented for
@@ -75,8 +80,12 @@ pub trait AnyModel: Send + Sync {
     /// See [`ImageModel::encode`].
     fn encode(&self, start: &[Affine2]) -> Result<Vec<f64>>;
 
-    /// θ's maps as affine maps (see [`ImageModel::to_affine`]).
+    /// θ's maps as affine maps (an error for a family whose maps are not affine).
     fn affine_maps(&self, theta: &[f64]) -> Result<Vec<Affine2>>;
+
+    /// θ's maps as a run's outputs need them: the evaluation render, probabilities, the
+    /// zoom strip's point, the affine form where there is one ([`Recovered`]).
+    fn recovered(&self, theta: &[f64]) -> Result<Box<dyn Recovered>>;
 
     /// The number of maps θ describes.
     fn n_maps(&self, theta: &[f64]) -> Result<usize>;
@@ -101,7 +110,7 @@ impl<M: ImageModel> AnyModel for M {
         at: Moment,
     ) -> Result<Option<f64>> {
         let maps = self.decode(theta)?;
-        let (renderer, seed) = rendering.drawn(self, &maps, at)?;
+        let (renderer, seed) = rendering.drawn(&maps, at)?;
         Ok(splat::render_msmse(
             &renderer.cfg,
             &maps,
@@ -114,7 +123,7 @@ impl<M: ImageModel> AnyModel for M {
 
     fn render(&self, theta: &[f64], rendering: &ImageRendering, at: Moment) -> Result<Vec<f32>> {
         let maps = self.decode(theta)?;
-        let (renderer, seed) = rendering.drawn(self, &maps, at)?;
+        let (renderer, seed) = rendering.drawn(&maps, at)?;
         let mut img = renderer.forward(&maps, &seed)?.0;
         if rendering.clamp {
             img.iter_mut().for_each(|v| *v = v.min(1.0));
@@ -141,7 +150,23 @@ impl<M: ImageModel> AnyModel for M {
     }
 
     fn affine_maps(&self, theta: &[f64]) -> Result<Vec<Affine2>> {
-        self.to_affine(&self.decode(theta)?)
+        self.decode(theta)?
+            .iter()
+            .enumerate()
+            .map(|(i, m)| {
+                m.affine()
+                    .map(|([[a, b], [c, d]], [e, f])| Affine2::new(a, b, c, d, e, f))
+                    .ok_or_else(|| {
+                        Error::InvalidInput(format!(
+                            "map {i} of this model is not affine (it has no affine form)"
+                        ))
+                    })
+            })
+            .collect()
+    }
+
+    fn recovered(&self, theta: &[f64]) -> Result<Box<dyn Recovered>> {
+        Ok(Box::new(Fitted::new(self.decode(theta)?)?))
     }
 
     fn n_maps(&self, theta: &[f64]) -> Result<usize> {
@@ -173,10 +198,6 @@ impl ImageModel for AffineModel {
 
     fn encode(&self, start: &[Affine2]) -> Result<Vec<f64>> {
         Ok(self.0.encode(start)?)
-    }
-
-    fn to_affine(&self, maps: &[Affine2]) -> Result<Vec<Affine2>> {
-        Ok(maps.to_vec())
     }
 }
 
@@ -240,9 +261,88 @@ impl ImageModel for SimilitudeModel {
         ImageModel::project(self, &mut theta);
         Ok(theta)
     }
+}
 
-    fn to_affine(&self, maps: &[Similitude2]) -> Result<Vec<Affine2>> {
-        Ok(maps.iter().map(Similitude2::to_affine).collect())
+/// Flame transforms `x ↦ w_lin·(A·x + b) + w_sin·sin(A·x + b)` (flam3's `linear` and
+/// `sinusoidal` variations after a pre-affine step, no post-affine; `family = "flame"`):
+/// θ = (flam3's `a b c d e f`, w_lin, w_sin) per map, the weights kept at
+/// |w_lin| + |w_sin| ≤ 1 so that a contracting affine step makes a contracting map (sine is
+/// 1-Lipschitz per coordinate). A start's affine maps become pure `linear` transforms. The
+/// maps are not affine once `w_sin ≠ 0`: a run writes its fit file, not an affine code file.
+pub struct FlameModel;
+
+impl FlameModel {
+    /// Parameters per map.
+    pub const PARAMS: usize = 8;
+}
+
+impl ImageModel for FlameModel {
+    type Map = SmoothXform;
+
+    fn decode(&self, theta: &[f64]) -> Result<Vec<SmoothXform>> {
+        if theta.is_empty() || !theta.len().is_multiple_of(Self::PARAMS) {
+            return Err(Error::InvalidInput(format!(
+                "a flame code needs {} parameters per map, θ has {}",
+                Self::PARAMS,
+                theta.len()
+            )));
+        }
+        if let Some(i) = theta.iter().position(|v| !v.is_finite()) {
+            return Err(Error::Numerical(format!(
+                "map {}, parameter {} is {}",
+                i / Self::PARAMS,
+                i % Self::PARAMS,
+                theta[i]
+            )));
+        }
+        theta
+            .chunks_exact(Self::PARAMS)
+            .map(|p| {
+                let coefs = [p[0], p[1], p[2], p[3], p[4], p[5]];
+                let variations = vec![
+                    Variation::new(VariationKind::Linear, p[6]),
+                    Variation::new(VariationKind::Sinusoidal, p[7]),
+                ];
+                Ok(SmoothXform::new(Xform::new(coefs, variations))?)
+            })
+            .collect()
+    }
+
+    /// The transform's parameters are θ's followed by the post-affine step's six, which
+    /// stay the identity.
+    fn backward(&self, _theta: &[f64], grad_params: &[f64]) -> Result<Vec<f64>> {
+        Ok(grad_params
+            .chunks_exact(Self::PARAMS + 6)
+            .flat_map(|g| g[..Self::PARAMS].iter().copied())
+            .collect())
+    }
+
+    fn project(&self, theta: &mut [f64]) {
+        for p in theta.chunks_exact_mut(Self::PARAMS) {
+            let total = p[6].abs() + p[7].abs();
+            if total > 1.0 {
+                p[6] /= total;
+                p[7] /= total;
+            }
+        }
+    }
+
+    fn encode(&self, start: &[Affine2]) -> Result<Vec<f64>> {
+        Ok(start
+            .iter()
+            .flat_map(|m| {
+                [
+                    m.m[(0, 0)],
+                    m.m[(1, 0)],
+                    m.m[(0, 1)],
+                    m.m[(1, 1)],
+                    m.b[0],
+                    m.b[1],
+                    1.0,
+                    0.0,
+                ]
+            })
+            .collect())
     }
 }
 
@@ -392,6 +492,12 @@ pub const MODELS: &[ModelEntry] = &[
         name: "similitude",
         about: "direct similitudes s·R(φ)·x + t, θ = (s, φ, tx, ty) per map",
         build: |_| Box::new(SimilitudeModel),
+    },
+    ModelEntry {
+        name: "flame",
+        about: "flame transforms w_lin·(A·x + b) + w_sin·sin(A·x + b), θ = (a…f, w_lin, w_sin) per \
+                map (not affine: the run writes fit.json)",
+        build: |_| Box::new(FlameModel),
     },
 ];
 

@@ -2,12 +2,13 @@
 //! and CSV log, resume.
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::Instant;
 
 use argmin::core::State;
 use argmin::core::observers::Observe;
 use ifslab::image::Image;
-use ifslab::model::{Affine2, IfsCode};
+use ifslab::model::Affine2;
 
 use crate::driver::GradState;
 use crate::driver::plan::RunPlan;
@@ -16,6 +17,7 @@ use crate::problems::image::config::InversionConfig;
 use crate::problems::image::init::{fit_offsets, initial_theta};
 use crate::problems::image::polish::{Polish, Polished, polish};
 use crate::problems::image::problem::{ImageProblem, TERMS};
+use crate::problems::image::result::Recovered;
 use crate::problems::image::target::load_framed_picture;
 
 pub use crate::driver::plan::{CHECKPOINT_FILE, LOG_FILE, START_FILE, ensure_new_run_dir};
@@ -26,8 +28,8 @@ pub struct InversionOutcome {
     /// The θ the run returns: of the last iterate, the best one the run recorded and the
     /// start, whichever scores lowest on fixed random streams ([`Selection`]).
     pub theta: Vec<f64>,
-    /// Final maps (θ decoded).
-    pub maps: Vec<Affine2>,
+    /// What θ describes, as the model draws and stores it (any family).
+    pub result: Arc<dyn Recovered>,
     /// Iterations completed (including those before a resume).
     pub iterations: u64,
     /// Loss of the last iteration.
@@ -77,6 +79,15 @@ fn polish_fit(
     Ok(Some(p))
 }
 
+/// The refusal of an IoU polish for a family whose maps are not affine.
+fn polish_needs_affine(cfg: &InversionConfig) -> Error {
+    Error::InvalidInput(format!(
+        "`model.polish` moves affine maps, and family `{}` has maps that are not affine \
+         (remove `polish` or choose an affine family)",
+        cfg.model.family
+    ))
+}
+
 /// The random streams the returned θ is chosen on: far from any iteration's own stream, the
 /// same for every candidate, so the comparison is not decided by one lucky draw of points.
 pub const SELECTION_STREAMS: [u64; 3] = [u64::MAX - 1, u64::MAX - 2, u64::MAX - 3];
@@ -109,12 +120,12 @@ pub struct Selection {
     pub not_contractive: Vec<&'static str>,
 }
 
-/// Whether θ decodes to maps that are all contractive (largest singular value below 1).
+/// Whether θ decodes to maps that are all contractive ([`Recovered::contractive`]).
 fn is_ifs(problem: &ImageProblem, theta: &[f64]) -> bool {
     problem
         .model()
-        .affine_maps(theta)
-        .is_ok_and(|maps| IfsCode::from_affine2(None, &maps).is_ok())
+        .recovered(theta)
+        .is_ok_and(|r| r.contractive())
 }
 
 fn mean_objective(problem: &ImageProblem, theta: &[f64]) -> Result<f64> {
@@ -218,21 +229,32 @@ pub fn run_inversion(
         })?
         .unwrap_or_default();
     let lpips_note = problem.lpips_skip_reason().map(str::to_owned);
+    // The polish moves affine maps: a family without them is refused before the run, not
+    // after it.
+    if cfg.model.polish > 0
+        && !start_theta.is_empty()
+        && problem.model().recovered(&start_theta)?.affine().is_none()
+    {
+        return Err(polish_needs_affine(cfg));
+    }
     let start = Instant::now();
     let (problem, state) = plan.execute(problem, &start_theta, resume_from, observers)?;
     let (mut theta, selection) = select(&problem, &state, &start_theta)?;
-    let mut maps = problem.model().affine_maps(&theta)?;
+    let mut result: Arc<dyn Recovered> = problem.model().recovered(&theta)?.into();
     let polished = match cfg.model.polish {
         0 => None,
-        rounds => polish_fit(cfg, &problem.target().values, &maps, rounds)?,
+        rounds => {
+            let maps = result.affine().ok_or_else(|| polish_needs_affine(cfg))?;
+            polish_fit(cfg, &problem.target().values, maps, rounds)?
+        }
     };
     if let Some(p) = polished.as_ref().filter(|p| p.kept) {
         theta = problem.model().encode(&p.maps)?;
-        maps = problem.model().affine_maps(&theta)?;
+        result = problem.model().recovered(&theta)?.into();
     }
     Ok(InversionOutcome {
         theta,
-        maps,
+        result,
         polished,
         iterations: state.get_iter(),
         final_loss: state.get_cost(),
