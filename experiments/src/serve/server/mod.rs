@@ -35,12 +35,15 @@ use crate::error::Context;
 use super::http::{self, Conn, ReadError, Response};
 use super::tile::TileRequest;
 use super::{Site, View};
+mod work;
+pub use work::TileStats;
+use work::{Job, Queue, Shared, Stats, TileCache, lock, work};
 
 /// The page, its script and style sheet, and the viewer's licence, compiled in.
-const PAGE: &str = include_str!("../../assets/viewer/index.html");
-const SCRIPT: &str = include_str!("../../assets/viewer/viewer.js");
-const STYLE: &str = include_str!("../../assets/viewer/viewer.css");
-const LICENSE: &str = include_str!("../../assets/viewer/LICENSE");
+const PAGE: &str = include_str!("../../../assets/viewer/index.html");
+const SCRIPT: &str = include_str!("../../../assets/viewer/viewer.js");
+const STYLE: &str = include_str!("../../../assets/viewer/viewer.css");
+const LICENSE: &str = include_str!("../../../assets/viewer/LICENSE");
 /// Where the page's info goes in `index.html`.
 const INFO_SLOT: &str = "/*IFSLAB_INFO*/null";
 
@@ -119,118 +122,6 @@ impl RunningServer {
             let _ = w.join();
         }
     }
-}
-
-/// What the tile workers did: tiles drawn, tiles cancelled before a worker took them up or
-/// while one drew them (their clients left), tiles of stale generations.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
-pub struct TileStats {
-    /// Drawn and sent.
-    pub drawn: u64,
-    /// Skipped: the client had left before a worker took the tile up.
-    pub cancelled_queued: u64,
-    /// Stopped midway: the client left while the tile was drawn.
-    pub cancelled_drawing: u64,
-    /// Not drawn, or stopped, because their page had moved to a newer generation.
-    pub stale: u64,
-}
-
-#[derive(Default)]
-struct Stats {
-    drawn: AtomicU64,
-    cancelled_queued: AtomicU64,
-    cancelled_drawing: AtomicU64,
-    stale: AtomicU64,
-}
-
-impl Stats {
-    fn snapshot(&self) -> TileStats {
-        TileStats {
-            drawn: self.drawn.load(Ordering::SeqCst),
-            cancelled_queued: self.cancelled_queued.load(Ordering::SeqCst),
-            cancelled_drawing: self.cancelled_drawing.load(Ordering::SeqCst),
-            stale: self.stale.load(Ordering::SeqCst),
-        }
-    }
-}
-
-fn bump(c: &AtomicU64) {
-    c.fetch_add(1, Ordering::SeqCst);
-}
-
-/// A tile waiting for a worker, and where its answer goes.
-struct Job {
-    view: usize,
-    tile: TileRequest,
-    cancel: Arc<AtomicBool>,
-    reply: Sender<Response>,
-}
-
-#[derive(Default)]
-struct Queue {
-    jobs: VecDeque<Job>,
-    closed: bool,
-}
-
-/// What the connections and the workers share.
-struct Shared {
-    site: Site,
-    page: String,
-    info: String,
-    /// Latest generation seen per page id.
-    generations: Mutex<HashMap<u64, u64>>,
-    cache: Mutex<TileCache>,
-    queue: Mutex<Queue>,
-    ready: Condvar,
-    stop: AtomicBool,
-    connections: AtomicUsize,
-    stats: Stats,
-}
-
-impl Shared {
-    /// The latest generation page `sid` asked for, if newer than `generation`.
-    fn newer(&self, generation: Option<(u64, u64)>) -> Option<u64> {
-        let (sid, generation) = generation?;
-        let latest = lock(&self.generations).get(&sid).copied()?;
-        (latest > generation).then_some(latest)
-    }
-}
-
-/// Drawn tiles by view and request key, oldest forgotten first.
-#[derive(Default)]
-struct TileCache {
-    tiles: HashMap<String, Arc<Vec<u8>>>,
-    order: VecDeque<String>,
-    bytes: usize,
-}
-
-impl TileCache {
-    fn get(&self, key: &str) -> Option<Arc<Vec<u8>>> {
-        self.tiles.get(key).cloned()
-    }
-
-    fn insert(&mut self, key: String, png: Arc<Vec<u8>>) {
-        if self.tiles.contains_key(&key) {
-            return;
-        }
-        self.bytes += png.len();
-        self.order.push_back(key.clone());
-        self.tiles.insert(key, png);
-        while self.bytes > CACHE_BYTES {
-            let Some(old) = self.order.pop_front() else {
-                break;
-            };
-            if let Some(t) = self.tiles.remove(&old) {
-                self.bytes -= t.len();
-            }
-        }
-    }
-}
-
-/// A lock whose holder panicked still guards consistent data here (maps and a queue updated
-/// in single calls).
-fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 /// Starts serving `site`: binds, then answers on background threads; returns at once.
@@ -442,92 +333,5 @@ fn route_tile(view: usize, query: &str, shared: &Shared, stream: &TcpStream) -> 
                 return Some(Response::text(500, "the tile's worker ended without it"));
             }
         }
-    }
-}
-
-/// What a render polls: its client left, or its page moved to a newer generation.
-struct Watch<'a> {
-    shared: &'a Shared,
-    job: &'a Job,
-}
-
-impl ifslab::progress::Progress for Watch<'_> {
-    fn cancelled(&self) -> bool {
-        self.job.cancel.load(Ordering::SeqCst)
-            || self.shared.newer(self.job.tile.generation).is_some()
-    }
-}
-
-fn stale(job: &Job, latest: u64) -> Response {
-    let (sid, generation) = job.tile.generation.unwrap_or_default();
-    Response::text(
-        409,
-        &format!(
-            "stale: generation {generation} of page {sid} is older than {latest}, the latest it \
-             asked for; not drawn"
-        ),
-    )
-}
-
-/// A worker: draws queued tiles until the queue closes.
-fn work(shared: &Shared) {
-    loop {
-        let job = {
-            let mut q = lock(&shared.queue);
-            loop {
-                if let Some(j) = q.jobs.pop_front() {
-                    break j;
-                }
-                if q.closed {
-                    return;
-                }
-                q = shared.ready.wait(q).unwrap_or_else(|e| e.into_inner());
-            }
-        };
-        if job.cancel.load(Ordering::SeqCst) {
-            bump(&shared.stats.cancelled_queued);
-            continue;
-        }
-        if let Some(latest) = shared.newer(job.tile.generation) {
-            bump(&shared.stats.stale);
-            let _ = job.reply.send(stale(&job, latest));
-            continue;
-        }
-        let key = format!("{}/{}", job.view, job.tile.key());
-        if let Some(bytes) = lock(&shared.cache).get(&key) {
-            let _ = job.reply.send(png(bytes.to_vec()));
-            continue;
-        }
-        let View::Tiles { renderer, .. } = &shared.site.views[job.view] else {
-            let _ = job.reply.send(Response::text(500, "not a tiled view"));
-            continue;
-        };
-        let watch = Watch { shared, job: &job };
-        // A panic in a render costs its tile, not the worker.
-        let drawn = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            renderer.render_png(&job.tile, &watch)
-        }));
-        let answer = match drawn {
-            Ok(Ok(bytes)) => {
-                bump(&shared.stats.drawn);
-                let bytes = Arc::new(bytes);
-                lock(&shared.cache).insert(key, bytes.clone());
-                png(bytes.to_vec())
-            }
-            Ok(Err(e)) if e.is_cancelled() => match shared.newer(job.tile.generation) {
-                Some(latest) => {
-                    bump(&shared.stats.stale);
-                    stale(&job, latest)
-                }
-                None => {
-                    bump(&shared.stats.cancelled_drawing);
-                    continue;
-                }
-            },
-            Ok(Err(e)) => Response::text(500, &format!("the tile was not drawn: {e:#}")),
-            Err(_) => Response::text(500, "the tile's render panicked"),
-        };
-        // A client that left is no error of the server's.
-        let _ = job.reply.send(answer);
     }
 }
