@@ -8,7 +8,9 @@
 //!   [`StrategyPlugin`] and call [`register_strategy`].
 //! - A **map family** for image inversion: an [`ImageModel`](crate::problems::image::ImageModel)
 //!   (θ ↔ maps of any [`DiffMap2`](ifslab::model::diff_map::DiffMap2) type) behind a
-//!   [`ModelEntry`]; call [`register_model`].
+//!   [`ModelEntry`]; call [`register_model`]. Its runs write their result as the model gives
+//!   it ([`Recovered`](crate::problems::image::Recovered)): `fit.json` always, `code.json`
+//!   where its maps are affine.
 //!
 //! `experiments/examples/plugin.rs` adds one of each and runs an inversion with them; the
 //! test `experiments/tests/plugin.rs` runs that example.
