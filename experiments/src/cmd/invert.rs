@@ -64,7 +64,8 @@ pub struct Args {
     /// svd | naive (affine maps).
     #[arg(long, default_value = "svd")]
     pub param: String,
-    /// Map family: affine | similitude (see `[model] family` in configs).
+    /// Map family: affine | similitude | flame (linear + sinusoidal variations: not affine, the
+    /// result is `fit.json`), or a registered one (see `[model] family` in configs).
     #[arg(long, default_value = "affine")]
     pub family: String,
     /// Supersampling of the differentiable renderer.
