@@ -227,9 +227,10 @@ fn border_ring(v: &[f32], w: usize, h: usize) -> Vec<f32> {
 }
 
 /// The shape of a picture as one plane in [0, 1], bright on a black background, whatever
-/// way it was drawn: a transparent picture's opacity (when its alpha plane holds both
-/// transparent and opaque pixels and no polarity says otherwise); otherwise its luma (alpha
-/// composited onto white). The background is the border ring's median level; the shape is
+/// way it was drawn: a transparent picture's opacity (when its background — the border
+/// ring's median opacity — is transparent, it holds opaque pixels, and no polarity says
+/// otherwise); otherwise its luma (alpha composited onto white). An opaque picture with a
+/// few stray see-through pixels (scikit-image's horse has eight) is read by its luma. The background is the border ring's median level; the shape is
 /// what departs from it by more than [`SHAPE_NOISE`] robust standard deviations of the
 /// ring, and `auto` turns the picture round when more of that lies below the background
 /// than above (a tiny figure decides it as well as a large one). Then the background goes
@@ -243,10 +244,9 @@ pub fn shape_plane(img: &Image, polarity: Polarity) -> Result<(Vec<f32>, TargetR
     let n = w * h;
     if img.channels == 4 && polarity != Polarity::DarkOnLight {
         let alpha = img.plane(3);
-        let (lo, hi) = alpha
-            .iter()
-            .fold((1.0f32, 0.0f32), |(l, u), &a| (l.min(a), u.max(a)));
-        if lo < 0.5 && hi > 0.5 {
+        let hi = alpha.iter().copied().fold(0.0f32, f32::max);
+        let mut ring = border_ring(alpha, w, h);
+        if quantile(&mut ring, 0.5) < 0.5 && hi > 0.5 {
             let (v, mut r) = normalise(alpha.to_vec(), w, h, Polarity::BrightOnDark)?;
             r.read = "opacity".into();
             return Ok((v, r));
@@ -770,6 +770,36 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("empty"), "{e}");
+    }
+
+    #[test]
+    fn an_opaque_picture_with_stray_see_through_pixels_is_read_by_its_colours() {
+        // A black disc on opaque white, four corner pixels half transparent (as in
+        // scikit-image's horse): the background is opaque, so the luma is the shape, dark on
+        // light — read by the opacity it would be refused as too faint.
+        let (w, h) = (60u32, 50u32);
+        let inside = |x: u32, y: u32| (x as f32 - 30.0).hypot(y as f32 - 25.0) < 12.0;
+        let grey: Vec<f32> = (0..h)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .map(|(x, y)| if inside(x, y) { 0.0 } else { 1.0 })
+            .collect();
+        let mut values: Vec<f32> = [grey.clone(), grey.clone(), grey].concat();
+        let mut alpha = vec![1.0f32; (w * h) as usize];
+        for i in [
+            0,
+            (w - 1) as usize,
+            ((h - 1) * w) as usize,
+            (w * h - 1) as usize,
+        ] {
+            alpha[i] = 0.43;
+        }
+        values.extend(alpha);
+        let img = Image::new(w, h, 4, values).unwrap();
+        let (_, reading) = shape_plane(&img, Polarity::Auto).unwrap();
+        assert_eq!(reading.read, "inverted", "{reading:?}");
+        let t = frame_target(&img, 32, Polarity::Auto).unwrap().values;
+        let (x0, x1, y0, y1) = lit_box(&t, 32, 0.5);
+        assert!((x1 - x0 + 1).abs_diff(24) <= 1 && (y1 - y0 + 1).abs_diff(24) <= 1);
     }
 
     #[test]
