@@ -2,7 +2,7 @@
 //! family (flam3's `linear` and `sinusoidal` variations) inverts a picture through
 //! [`RunConfig::run`], and its result — a fit file, no affine code file — draws the run's
 //! render, zoom strip and truth again, packed and unpacked like any run; the IoU polish,
-//! which moves affine maps, is refused before such a run starts.
+//! which moves affine maps, is refused by the config's check, before a folder is made.
 
 use ifslab_experiments::progress::Silent;
 use ifslab_experiments::runs::{RunConfig, redraw_pictures};
@@ -82,15 +82,22 @@ fn a_family_that_is_not_affine_writes_and_redraws_its_own_result() {
 }
 
 #[test]
-fn the_iou_polish_is_refused_for_maps_that_are_not_affine_before_the_run() {
+fn the_iou_polish_is_refused_for_maps_that_are_not_affine_when_the_config_is_read() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("run");
     let text = CONFIG.replace("init = \"em\"", "init = \"em\"\npolish = 2");
-    let cfg = RunConfig::from_toml(&text, &tmp.path().join("flame.toml")).unwrap();
-    let e = format!("{:#}", cfg.run(&dir, false, Box::new(Silent)).unwrap_err());
+    // Refused where the config is read: no run, no folder.
+    let e = format!(
+        "{:#}",
+        RunConfig::from_toml(&text, &tmp.path().join("flame.toml")).unwrap_err()
+    );
     assert!(e.contains("polish") && e.contains("flame"), "{e}");
     assert!(
         !dir.join("log.csv").exists(),
         "refused before any iteration"
+    );
+    assert!(
+        !dir.exists(),
+        "refused by the config's check: no folder to clear"
     );
 }

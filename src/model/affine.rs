@@ -22,6 +22,13 @@ pub struct Affine2 {
 }
 
 impl Affine2 {
+    /// The affine map `m` is, where it is one ([`Map::affine`]): how the deep zoom, the
+    /// code file and the IoU polish see a map of any type.
+    pub fn of_map<M: Map<2>>(m: &M) -> Option<Affine2> {
+        m.affine()
+            .map(|([[a, b], [c, d]], [e, f])| Affine2::new(a, b, c, d, e, f))
+    }
+
     /// The map from the six classic table coefficients.
     pub fn new(a: f64, b: f64, c: f64, d: f64, e: f64, f: f64) -> Self {
         Affine2 {

@@ -42,4 +42,4 @@ pub use scalar::{Dual, FlameScalar};
 #[doc(hidden)]
 pub use crate::math::trig as fast_math;
 pub use variation::{Variation, VariationKind};
-pub use xform::{Applied, Coefs, IDENTITY, PreparedXform, SmoothXform, Xform};
+pub use xform::{Applied, Coefs, IDENTITY, PreparedXform, SmoothXform, Xform, affine_of, coefs_of};

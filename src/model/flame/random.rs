@@ -32,7 +32,7 @@ use crate::model::flame::genome::Flame;
 use crate::model::flame::palette::Palette;
 use crate::model::flame::variation::{Variation, VariationKind};
 use crate::model::flame::variations::{rand01, rand11};
-use crate::model::flame::xform::{IDENTITY, Xform};
+use crate::model::flame::xform::{IDENTITY, Xform, coefs_of};
 
 /// What [`random_flame`] may choose from.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -608,14 +608,7 @@ pub fn flame_from_affine(
         .zip(probabilities)
         .enumerate()
         .map(|(i, (m, &p))| Xform {
-            coefs: [
-                m.m[(0, 0)],
-                m.m[(1, 0)],
-                m.m[(0, 1)],
-                m.m[(1, 1)],
-                m.b[0],
-                m.b[1],
-            ],
+            coefs: coefs_of(m),
             weight: p,
             color: if n > 1 {
                 i as f64 / (n - 1) as f64

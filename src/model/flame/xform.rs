@@ -34,6 +34,23 @@ use crate::model::flame::variations::{Pre, eval_detected, eval_on, pre_blur};
 /// `y' = b·x + d·y + f`).
 pub type Coefs = [f64; 6];
 
+/// The coefficients of an affine map in flam3's order (`M = [[a, c], [b, d]]`, `t = (e, f)`).
+pub fn coefs_of(m: &crate::model::Affine2) -> Coefs {
+    [
+        m.m[(0, 0)],
+        m.m[(1, 0)],
+        m.m[(0, 1)],
+        m.m[(1, 1)],
+        m.b[0],
+        m.b[1],
+    ]
+}
+
+/// The affine map of coefficients in flam3's order (the inverse of [`coefs_of`]).
+pub fn affine_of(c: &Coefs) -> crate::model::Affine2 {
+    crate::model::Affine2::new(c[0], c[2], c[1], c[3], c[4], c[5])
+}
+
 /// The identity map in flam3's coefficient order.
 pub const IDENTITY: Coefs = [1.0, 0.0, 0.0, 1.0, 0.0, 0.0];
 
@@ -635,8 +652,7 @@ impl crate::model::map::DiffMap<2> for SmoothXform {
 /// `x' = a·x + c·y + e`, `y' = b·x + d·y + f`).
 impl crate::model::diff_map::AffinePart for SmoothXform {
     fn affine_part(&self) -> crate::model::Affine2 {
-        let c = &self.0.coefs;
-        crate::model::Affine2::new(c[0], c[2], c[1], c[3], c[4], c[5])
+        affine_of(&self.0.coefs)
     }
 
     fn affine_part_backward(&self, g: &crate::model::Affine2, grad: &mut [f64]) {

@@ -606,11 +606,7 @@ fn deep_zoom_words<M: Map2>(
     if !cfg.deep_zoom || cfg.zoom.is_none() {
         return Ok(None);
     }
-    let affine = maps.iter().map(|m| {
-        m.affine()
-            .map(|([[a, b], [c, d]], [e, f])| Affine2::new(a, b, c, d, e, f))
-    });
-    let Some(affine) = affine.collect::<Option<Vec<_>>>() else {
+    let Some(affine) = maps.iter().map(Affine2::of_map).collect::<Option<Vec<_>>>() else {
         return Ok(None);
     };
     // A window that misses the attractor is drawn the plain way (an empty view), and so is

@@ -543,6 +543,9 @@ impl InversionConfig {
             }
             other => other,
         })?;
+        if self.model.polish > 0 && !self.model.build()?.maps_are_affine()? {
+            return Err(polish_needs_affine(&self.model.family));
+        }
         if !(1..=64).contains(&self.model.maps) {
             return Err(Error::InvalidInput(format!(
                 "config field `model.maps`: must lie in 1..=64, got {}",
@@ -653,6 +656,14 @@ impl InversionConfig {
             device: r.device,
         }
     }
+}
+
+/// The refusal of the IoU polish for a family whose maps are not affine.
+pub(crate) fn polish_needs_affine(family: &str) -> Error {
+    Error::InvalidInput(format!(
+        "config field `model.polish`: the polish moves affine maps, and family `{family}` has \
+         maps that are not affine (remove `polish` or choose an affine family)"
+    ))
 }
 
 #[cfg(test)]

@@ -20,8 +20,8 @@
 use candle_core::Tensor;
 use ifslab::loss::{LossBreakdown, Objective};
 use ifslab::model::diff_map::Similitude2;
-use ifslab::model::flame::{SmoothXform, Variation, VariationKind, Xform};
-use ifslab::model::{Affine2, Map, Parameterisation};
+use ifslab::model::flame::{SmoothXform, Variation, VariationKind, Xform, coefs_of};
+use ifslab::model::{Affine2, Parameterisation};
 use ifslab::render::Renderer;
 use ifslab::render::splat;
 
@@ -89,6 +89,13 @@ pub trait AnyModel: Send + Sync {
 
     /// The number of maps θ describes.
     fn n_maps(&self, theta: &[f64]) -> Result<usize>;
+
+    /// Whether the family's maps are affine maps: read off the map a contracting affine
+    /// start (x ↦ x/2) becomes, so a config can be checked before a run has a θ.
+    fn maps_are_affine(&self) -> Result<bool> {
+        let probe = self.encode(&[Affine2::new(0.5, 0.0, 0.0, 0.5, 0.0, 0.0)])?;
+        Ok(self.affine_maps(&probe).is_ok())
+    }
 }
 
 impl<M: ImageModel> AnyModel for M {
@@ -154,13 +161,11 @@ impl<M: ImageModel> AnyModel for M {
             .iter()
             .enumerate()
             .map(|(i, m)| {
-                m.affine()
-                    .map(|([[a, b], [c, d]], [e, f])| Affine2::new(a, b, c, d, e, f))
-                    .ok_or_else(|| {
-                        Error::InvalidInput(format!(
-                            "map {i} of this model is not affine (it has no affine form)"
-                        ))
-                    })
+                Affine2::of_map(m).ok_or_else(|| {
+                    Error::InvalidInput(format!(
+                        "map {i} of this model is not affine (it has no affine form)"
+                    ))
+                })
             })
             .collect()
     }
@@ -268,7 +273,8 @@ impl ImageModel for SimilitudeModel {
 /// θ = (flam3's `a b c d e f`, w_lin, w_sin) per map, the weights kept at
 /// |w_lin| + |w_sin| ≤ 1 so that a contracting affine step makes a contracting map (sine is
 /// 1-Lipschitz per coordinate). A start's affine maps become pure `linear` transforms. The
-/// maps are not affine once `w_sin ≠ 0`: a run writes its fit file, not an affine code file.
+/// family's maps are not affine maps (`SmoothXform` has no affine form, even at `w_sin = 0`):
+/// its runs write their fit file, not an affine code file.
 pub struct FlameModel;
 
 impl FlameModel {
@@ -331,16 +337,11 @@ impl ImageModel for FlameModel {
         Ok(start
             .iter()
             .flat_map(|m| {
-                [
-                    m.m[(0, 0)],
-                    m.m[(1, 0)],
-                    m.m[(0, 1)],
-                    m.m[(1, 1)],
-                    m.b[0],
-                    m.b[1],
-                    1.0,
-                    0.0,
-                ]
+                let mut p = [0.0; Self::PARAMS];
+                p[..6].copy_from_slice(&coefs_of(m));
+                // Pure `linear`: the start's own affine map.
+                p[6] = 1.0;
+                p
             })
             .collect())
     }

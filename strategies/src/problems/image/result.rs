@@ -3,7 +3,7 @@
 //! zoom strip closes in on, their affine form where they have one, whether they contract.
 //! The file that keeps θ with the model that decodes it is [`FitFile`](super::fit::FitFile).
 
-use ifslab::model::{Affine2, AffinePart, IfsCode, Map, ProbabilityRule};
+use ifslab::model::{Affine2, AffinePart, IfsCode, ProbabilityRule};
 use ifslab::render::{Raster, RenderConfig, render};
 
 use crate::error::{Error, Result};
@@ -56,14 +56,31 @@ pub struct Fitted<M> {
 impl<M: AffinePart + Send + Sync> Fitted<M> {
     /// `maps` with the evaluation probabilities of their affine parts.
     pub fn new(maps: Vec<M>) -> Result<Self> {
+        Fitted::with(maps, None)
+    }
+
+    /// `maps` drawn with the probabilities `probs` (a code file's own).
+    pub fn with_probabilities(maps: Vec<M>, probs: Vec<f64>) -> Result<Self> {
+        if probs.len() != maps.len() {
+            return Err(Error::InvalidInput(format!(
+                "{} probabilities for {} maps",
+                probs.len(),
+                maps.len()
+            )));
+        }
+        Fitted::with(maps, Some(probs))
+    }
+
+    fn with(maps: Vec<M>, probs: Option<Vec<f64>>) -> Result<Self> {
         if maps.is_empty() {
             return Err(Error::InvalidInput("a recovered code has no maps".into()));
         }
-        let affine = affine_form(&maps);
-        let probs = match &affine {
+        let affine: Option<Vec<Affine2>> = maps.iter().map(Affine2::of_map).collect();
+        let probs = match (probs, &affine) {
+            (Some(p), _) => p,
             // Through the code type, as the code file computes them (the same bits).
-            Some(a) => unchecked_code(a).evaluation_probabilities()?,
-            None => ProbabilityRule::default().resolve(
+            (None, Some(a)) => unchecked_code(a).evaluation_probabilities()?,
+            (None, None) => ProbabilityRule::default().resolve(
                 &maps
                     .iter()
                     .map(|m| m.affine_part().det().abs())
@@ -77,35 +94,10 @@ impl<M: AffinePart + Send + Sync> Fitted<M> {
         })
     }
 
-    /// `maps` drawn with the probabilities `probs` (a code file's own).
-    pub fn with_probabilities(maps: Vec<M>, probs: Vec<f64>) -> Result<Self> {
-        if probs.len() != maps.len() {
-            return Err(Error::InvalidInput(format!(
-                "{} probabilities for {} maps",
-                probs.len(),
-                maps.len()
-            )));
-        }
-        Ok(Fitted {
-            probs,
-            ..Fitted::new(maps)?
-        })
-    }
-
     /// The maps.
     pub fn maps(&self) -> &[M] {
         &self.maps
     }
-}
-
-/// The maps as affine maps when every one of them is ([`Map::affine`]).
-fn affine_form<M: Map<2>>(maps: &[M]) -> Option<Vec<Affine2>> {
-    maps.iter()
-        .map(|m| {
-            m.affine()
-                .map(|([[a, b], [c, d]], [e, f])| Affine2::new(a, b, c, d, e, f))
-        })
-        .collect()
 }
 
 /// A code of `maps` without its validation (the probabilities of an expanding map are still
@@ -186,7 +178,7 @@ mod tests {
     use super::*;
     use crate::problems::image::FlameModel;
     use crate::problems::image::model::ImageModel;
-    use ifslab::model::library;
+    use ifslab::model::{Map, library};
 
     #[test]
     fn affine_results_keep_the_code_files_numbers() {

@@ -13,7 +13,7 @@ use ifslab::model::Affine2;
 use crate::driver::GradState;
 use crate::driver::plan::RunPlan;
 use crate::error::{Error, Result};
-use crate::problems::image::config::InversionConfig;
+use crate::problems::image::config::{InversionConfig, polish_needs_affine};
 use crate::problems::image::init::{fit_offsets, initial_theta};
 use crate::problems::image::polish::{Polish, Polished, polish};
 use crate::problems::image::problem::{ImageProblem, TERMS};
@@ -77,15 +77,6 @@ fn polish_fit(
     };
     fit_offsets(&mut p.maps, 0.9);
     Ok(Some(p))
-}
-
-/// The refusal of an IoU polish for a family whose maps are not affine.
-fn polish_needs_affine(cfg: &InversionConfig) -> Error {
-    Error::InvalidInput(format!(
-        "`model.polish` moves affine maps, and family `{}` has maps that are not affine \
-         (remove `polish` or choose an affine family)",
-        cfg.model.family
-    ))
 }
 
 /// The random streams the returned θ is chosen on: far from any iteration's own stream, the
@@ -229,14 +220,6 @@ pub fn run_inversion(
         })?
         .unwrap_or_default();
     let lpips_note = problem.lpips_skip_reason().map(str::to_owned);
-    // The polish moves affine maps: a family without them is refused before the run, not
-    // after it.
-    if cfg.model.polish > 0
-        && !start_theta.is_empty()
-        && problem.model().recovered(&start_theta)?.affine().is_none()
-    {
-        return Err(polish_needs_affine(cfg));
-    }
     let start = Instant::now();
     let (problem, state) = plan.execute(problem, &start_theta, resume_from, observers)?;
     let (mut theta, selection) = select(&problem, &state, &start_theta)?;
@@ -244,7 +227,10 @@ pub fn run_inversion(
     let polished = match cfg.model.polish {
         0 => None,
         rounds => {
-            let maps = result.affine().ok_or_else(|| polish_needs_affine(cfg))?;
+            // `validate` refused a family without affine maps.
+            let maps = result
+                .affine()
+                .ok_or_else(|| polish_needs_affine(&cfg.model.family))?;
             polish_fit(cfg, &problem.target().values, maps, rounds)?
         }
     };
