@@ -35,10 +35,12 @@ fn render_tetrahedron(views: &Path) {
     assert!(o.status.success(), "{}", text(&o));
 }
 
-/// How views drawn by the library's own blurred splat are fitted: at 1×, σ 1.5 → 0.8, 100
-/// trajectories, without the ink guard (the defaults suit crisp views from elsewhere); what
-/// `experiments/configs/image3d_tetrahedron.toml` sets.
-const OWN_VIEWS: [&str; 8] = [
+/// How views drawn by the library's own blurred splat are fitted: from the hull's EM start,
+/// at 1×, σ 1.5 → 0.8, 100 trajectories, without the ink guard (the defaults suit crisp
+/// views from elsewhere); what `experiments/configs/image3d_tetrahedron.toml` sets.
+const OWN_VIEWS: [&str; 10] = [
+    "--start",
+    "hull",
     "--supersample",
     "1",
     "--sigma-final",

@@ -28,6 +28,9 @@ pub enum StartArg {
     Hull,
     /// Random maps drawn from the seed.
     Random,
+    /// Affine copies of the visual hull found inside it (a collage search in space), or
+    /// the hull's EM code where its silhouettes match the views better.
+    Collage,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
@@ -63,7 +66,7 @@ pub struct Args {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Where the fit starts.
-    #[arg(long, value_enum, default_value = "hull")]
+    #[arg(long, value_enum, default_value = "collage")]
     pub start: StartArg,
     /// Start from this 3-D code file instead (as many maps as --maps): a previous fit's
     /// code.json, or the truth, to see whether the loss keeps it.
@@ -185,6 +188,7 @@ fn config(a: &Args) -> anyhow::Result<Image3dRunConfig> {
             (_, Some(_)) => Start3d::Code,
             (StartArg::Hull, None) => Start3d::Hull,
             (StartArg::Random, None) => Start3d::Random,
+            (StartArg::Collage, None) => Start3d::Collage,
         },
         start_code: a.start_code.clone(),
         probabilities: match a.probabilities {

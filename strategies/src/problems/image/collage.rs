@@ -556,45 +556,13 @@ pub fn collage_covers(
     found.truncate(keep);
     let maps: Vec<PixelMap> = found.iter().map(|(m, _)| *m).collect();
     let cover: Vec<Vec<u64>> = maps.par_iter().map(|m| field.coverage(m)).collect();
-    let totals: Vec<f64> = cover.iter().map(|c| count(c) as f64).collect();
 
     let mut pick_rng = trajectory_rng(stream, u64::MAX);
+    let choices = greedy_covers(&cover, k, search.covers, 0.05, &mut pick_rng, |i, j| {
+        near(&maps[i], &maps[j])
+    });
     let mut scored: Vec<ScoredCover> = Vec::new();
-    for trial in 0..search.covers.max(1) {
-        let jitter: Vec<f64> = (0..maps.len())
-            .map(|_| {
-                if trial == 0 {
-                    1.0
-                } else {
-                    pick_rng.random_range(0.7..1.0)
-                }
-            })
-            .collect();
-        let mut covered = vec![0u64; cover.first().map_or(0, Vec::len)];
-        let mut chosen: Vec<usize> = Vec::with_capacity(k);
-        while chosen.len() < k {
-            let mut pick: Option<(f64, usize)> = None;
-            for (i, c) in cover.iter().enumerate() {
-                if chosen.iter().any(|&j| j == i || near(&maps[j], &maps[i])) {
-                    continue;
-                }
-                let fresh: u32 = c
-                    .iter()
-                    .zip(&covered)
-                    .map(|(a, b)| (a & !b).count_ones())
-                    .sum();
-                let gain = (fresh as f64 + 0.05 * totals[i]) * jitter[i];
-                if pick.is_none_or(|(g, _)| gain > g) {
-                    pick = Some((gain, i));
-                }
-            }
-            // Fewer distinct candidates than maps: repeat the largest ones.
-            let i = pick.map_or(chosen.len() % maps.len(), |(_, i)| i);
-            for (w, c) in covered.iter_mut().zip(&cover[i]) {
-                *w |= c;
-            }
-            chosen.push(i);
-        }
+    for (trial, chosen) in choices.into_iter().enumerate() {
         let code: Vec<PixelMap> = chosen.iter().map(|&i| maps[i]).collect();
         let mut key = chosen.clone();
         key.sort_unstable();
@@ -615,6 +583,62 @@ pub fn collage_covers(
         }
     }
     Ok(scored)
+}
+
+/// Step 2 of the search, for a plane or for space: `trials` (at least one) choices of `k`
+/// candidates whose coverage bit sets `cover` together cover the most. Each pick takes the
+/// candidate of the largest gain — the cells it adds, plus `size_weight` times all it
+/// covers (the plane's search: a twentieth) —
+/// that is neither chosen nor `near` a chosen one; the first trial is deterministic, the
+/// others weigh each candidate's gain by a factor in [0.7, 1) drawn from `rng` (one per
+/// candidate and trial). Fewer distinct candidates than maps repeat the largest ones.
+pub(crate) fn greedy_covers<R: Rng>(
+    cover: &[Vec<u64>],
+    k: usize,
+    trials: usize,
+    size_weight: f64,
+    rng: &mut R,
+    near: impl Fn(usize, usize) -> bool,
+) -> Vec<Vec<usize>> {
+    let totals: Vec<f64> = cover.iter().map(|c| count(c) as f64).collect();
+    (0..trials.max(1))
+        .map(|trial| {
+            let jitter: Vec<f64> = (0..cover.len())
+                .map(|_| {
+                    if trial == 0 {
+                        1.0
+                    } else {
+                        rng.random_range(0.7..1.0)
+                    }
+                })
+                .collect();
+            let mut covered = vec![0u64; cover.first().map_or(0, Vec::len)];
+            let mut chosen: Vec<usize> = Vec::with_capacity(k);
+            while chosen.len() < k {
+                let mut pick: Option<(f64, usize)> = None;
+                for (i, c) in cover.iter().enumerate() {
+                    if chosen.iter().any(|&j| j == i || near(j, i)) {
+                        continue;
+                    }
+                    let fresh: u32 = c
+                        .iter()
+                        .zip(&covered)
+                        .map(|(a, b)| (a & !b).count_ones())
+                        .sum();
+                    let gain = (fresh as f64 + size_weight * totals[i]) * jitter[i];
+                    if pick.is_none_or(|(g, _)| gain > g) {
+                        pick = Some((gain, i));
+                    }
+                }
+                let i = pick.map_or(chosen.len() % cover.len(), |(_, i)| i);
+                for (w, c) in covered.iter_mut().zip(&cover[i]) {
+                    *w |= c;
+                }
+                chosen.push(i);
+            }
+            chosen
+        })
+        .collect()
 }
 
 /// A pixel-coordinate map in the inversion's coordinates: `x = 2u/S − 1`, `y = 1 − 2v/S`,

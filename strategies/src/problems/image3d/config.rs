@@ -18,11 +18,18 @@ use crate::strategy_config::StrategyConfig;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Start3d {
-    /// EM in 3-D on points of the visual hull (the baseline).
-    #[default]
+    /// EM in 3-D on points of the visual hull (the baseline; the default until the collage
+    /// start).
     Hull,
     /// Random SVD maps drawn from the seed.
     Random,
+    /// The collage search in space ([`crate::problems::image3d::collage`]): affine copies
+    /// of the hull inside the hull, the cover whose silhouettes match the views best — or
+    /// the hull's EM code where its silhouettes match them better. The default: on the
+    /// tuning split's eight random 4-map codes it raised the fits' mean voxel IoU from
+    /// 0.612 to 0.967 (README, "In 3-D").
+    #[default]
+    Collage,
     /// A code of space read from a file (`start_code`): a previous fit's `code.json`, or
     /// the truth, to see whether the loss keeps it.
     Code,
@@ -187,7 +194,7 @@ impl Default for Image3dConfig {
             maps: 4,
             iterations: 150,
             seed: 0,
-            start: Start3d::Hull,
+            start: Start3d::Collage,
             start_code: None,
             probabilities: MapChoice::Determinant,
             strategy: default_strategy(),
@@ -224,7 +231,7 @@ impl Image3dConfig {
                     "a fit that starts from a code needs the code's file",
                 ));
             }
-            (Start3d::Hull | Start3d::Random, Some(_)) => {
+            (Start3d::Hull | Start3d::Random | Start3d::Collage, Some(_)) => {
                 return Err(Error::param(
                     "start_code",
                     "is read only when the fit starts from a code (start = \"code\")",

@@ -8,6 +8,8 @@
 //! - [`problem`]: `Image3dProblem`, θ → SVD maps of space → the multi-view splat → the 2-D
 //!   image loss on every view; [`Differentiable`](crate::driver::Differentiable) and
 //!   [`Anneal`](crate::optim::annealing::Anneal), so every registered strategy drives it.
+//! - [`collage`]: the collage start in space — affine copies of the hull found inside the
+//!   hull, the cover whose silhouettes match the views best.
 //! - [`config`]: `Image3dConfig` (maps, start, strategy, splat, loss, hull).
 //! - [`run`]: the run folder — hull, EM, the strategy under the shared driver — and the
 //!   outputs people open: `code.json`, `baseline.json`, `points.ply`, `views.png`,
@@ -19,12 +21,16 @@
 //! - A. Laurentini, *The visual hull concept for silhouette-based image understanding*,
 //!   IEEE TPAMI 16(2), 1994.
 
+pub mod collage;
 pub mod config;
 pub mod hull;
 pub mod problem;
 pub mod run;
 pub mod views;
 
+pub use collage::{
+    CollageSearch3, ScoredCover3, collage_candidates3, collage_covers3, silhouette_score,
+};
 pub use config::{Image3dConfig, MapChoice, Render3dConfig, Start3d};
 pub use hull::{Hull, HullConfig, encode_start, hull_start, random_start, visual_hull};
 pub use problem::{IMAGE3D_TERMS, Image3dLoss, Image3dModel, Image3dProblem};

@@ -11,7 +11,7 @@ use std::time::Instant;
 
 use argmin::core::State;
 use argmin::core::observers::Observe;
-use ifslab::chaos::{ChaosGame, points3};
+use ifslab::chaos::{ChaosGame, mix_seed, points3};
 use ifslab::image::Image;
 use ifslab::metrics3d::{chamfer_distance, voxel_iou};
 use ifslab::model::IfsCode;
@@ -23,8 +23,9 @@ use serde::Serialize;
 use crate::driver::GradState;
 use crate::driver::plan::{CHECKPOINT_FILE, RunPlan};
 use crate::error::{Error, Result};
+use crate::problems::image3d::collage::{CollageSearch3, collage_covers3, silhouette_score};
 use crate::problems::image3d::config::{Image3dConfig, Start3d};
-use crate::problems::image3d::hull::{encode_start, hull_start, random_start, visual_hull};
+use crate::problems::image3d::hull::{Hull, encode_start, hull_start, random_start, visual_hull};
 use crate::problems::image3d::problem::{IMAGE3D_TERMS, Image3dProblem};
 use crate::problems::image3d::views::{Views, render_views};
 
@@ -42,9 +43,25 @@ fn evaluation_game(seed: u64) -> ChaosGame {
     }
 }
 
+/// How the collage start chose (`Start3d::Collage`): the silhouette scores
+/// ([`silhouette_score`]) of the best cover and of the hull's EM code, and which started.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct StartScores3d {
+    /// The best collage cover's.
+    pub collage: f64,
+    /// The hull's EM code's.
+    pub hull: f64,
+    /// `collage` or `hull`: the start (the higher score; the collage on a tie).
+    pub chosen: &'static str,
+}
+
 /// What a multi-view inversion found.
 #[derive(Clone, Debug)]
 pub struct Image3dOutcome {
+    /// With a collage start, how it chose.
+    pub start_scores: Option<StartScores3d>,
+    /// The start's maps.
+    pub start: Vec<Affine3>,
     /// The fitted maps.
     pub maps: Vec<Affine3>,
     /// The same maps as the fit's parameterisation holds them.
@@ -205,11 +222,23 @@ pub fn run_image3d_in(
         hull.kept.len(),
         cfg.maps
     ));
+    let mut start_scores = None;
     let start_maps = match cfg.start {
         Start3d::Hull => baseline.clone(),
         Start3d::Random => random_start(cfg.maps, cfg.seed)?,
         Start3d::Code => code_start(cfg)?,
+        Start3d::Collage => {
+            progress.message("searching the hull for copies of itself (collage start)");
+            let (maps, scores) = collage_start(&hull, views, cfg, &baseline)?;
+            progress.message(&format!(
+                "collage start: silhouettes {:.3} against the hull's EM code's {:.3}",
+                scores.collage, scores.hull
+            ));
+            start_scores = Some(scores);
+            maps
+        }
     };
+    let hull_seconds = clock.elapsed().as_secs_f64();
 
     let mut problem = Image3dProblem::<f32>::new(
         &start_maps,
@@ -255,6 +284,8 @@ pub fn run_image3d_in(
         None => None,
     };
     Ok(Image3dOutcome {
+        start_scores,
+        start: to_affine(&start_maps),
         maps: to_affine(&svd_maps),
         svd_maps,
         baseline: to_affine(&baseline),
@@ -296,6 +327,58 @@ fn code_start(cfg: &Image3dConfig) -> Result<Vec<SvdMap3>> {
     maps.iter().map(encode_start).collect()
 }
 
+/// Stream the collage start's scores are drawn on (never an iteration's).
+const START_SCORE_STREAM: u64 = u64::MAX - 3;
+
+/// The start of a `start = "collage"` fit: the best cover of the collage search in space,
+/// or the hull's EM code `baseline` where its silhouettes match the views better, as SVD
+/// maps ([`encode_start`]).
+fn collage_start(
+    hull: &Hull,
+    views: &Views,
+    cfg: &Image3dConfig,
+    baseline: &[SvdMap3],
+) -> Result<(Vec<SvdMap3>, StartScores3d)> {
+    let search = CollageSearch3 {
+        ink_level: cfg.hull.threshold,
+        ..CollageSearch3::default()
+    };
+    let covers = collage_covers3(hull, views, cfg.maps, cfg.seed, &search)?;
+    let best = &covers[0];
+    let encoded: Vec<SvdMap3> = best.maps.iter().map(encode_start).collect::<Result<_>>()?;
+    // Both scored as encoded (singular values and offsets brought inside what the fit
+    // reaches), on one stream.
+    let score = |maps: &[SvdMap3]| {
+        silhouette_score(
+            views,
+            &to_affine(maps),
+            search.score_points,
+            search.ink_level,
+            mix_seed(cfg.seed, START_SCORE_STREAM),
+        )
+    };
+    let (collage, em) = (score(&encoded)?, score(baseline)?);
+    Ok(if collage >= em {
+        (
+            encoded,
+            StartScores3d {
+                collage,
+                hull: em,
+                chosen: "collage",
+            },
+        )
+    } else {
+        (
+            baseline.to_vec(),
+            StartScores3d {
+                collage,
+                hull: em,
+                chosen: "hull",
+            },
+        )
+    })
+}
+
 fn to_affine(maps: &[SvdMap3]) -> Vec<Affine3> {
     maps.iter().map(SvdMap3::to_affine).collect()
 }
@@ -332,8 +415,15 @@ pub struct Summary3d {
     pub other_views: Option<HeldOut3d>,
     /// Voxels of the visual hull.
     pub hull_voxels: usize,
-    /// Seconds: hull and EM, then the strategy.
+    /// Seconds: hull and EM (and the collage search, with a collage start), then the
+    /// strategy.
     pub seconds: [f64; 2],
+    /// With a collage start, how it chose between the collage and the hull's EM code.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub start_choice: Option<StartScores3d>,
+    /// With a collage start and a truth, the start's scores against the truth.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub start: Option<Scores3d>,
     /// The baseline's scores against the truth, when one was given.
     pub baseline: Option<Scores3d>,
     /// The fit's scores against the truth, when one was given.
@@ -405,7 +495,7 @@ pub fn write_outputs(
         128,
     )?;
 
-    let (baseline, fit) = match truth {
+    let (baseline, fit, start) = match truth {
         Some((maps, probs)) => {
             let t = attractor(maps, probs, cfg.seed.wrapping_add(1))?;
             let b = attractor(&outcome.baseline, baseline_probs.as_deref(), cfg.seed)?;
@@ -421,9 +511,20 @@ pub fn write_outputs(
                     chamfer: chamfer_distance(&t_thin, &thin(p))?,
                 })
             };
-            (Some(score(&b)?), Some(score(&points)?))
+            let start = match &outcome.start_scores {
+                Some(_) => {
+                    let probs = cfg.probabilities.for_affine(&outcome.start);
+                    Some(score(&attractor(
+                        &outcome.start,
+                        probs.as_deref(),
+                        cfg.seed,
+                    )?)?)
+                }
+                None => None,
+            };
+            (Some(score(&b)?), Some(score(&points)?), start)
         }
-        None => (None, None),
+        None => (None, None, None),
     };
     let summary = Summary3d {
         views: views.len(),
@@ -450,6 +551,8 @@ pub fn write_outputs(
         },
         hull_voxels: outcome.hull_voxels,
         seconds: [outcome.hull_seconds, outcome.fit_seconds],
+        start_choice: outcome.start_scores,
+        start,
         baseline,
         fit,
     };

@@ -1,0 +1,3 @@
+//! Helpers shared by the strategies' integration tests.
+
+pub mod crisp_views;
