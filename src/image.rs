@@ -395,7 +395,7 @@ mod tests {
             [x as f64, y as f64, z as f64]
         };
         let d = distance_to_3d(&mask, dims).unwrap();
-        for i in 0..n {
+        for (i, &di) in d.iter().enumerate() {
             let p = at(i);
             let best = (0..n)
                 .filter(|&j| mask[j])
@@ -404,11 +404,7 @@ mod tests {
                     ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
                 })
                 .fold(f64::INFINITY, f64::min);
-            assert!(
-                (d[i] - best).abs() < 1e-12,
-                "voxel {i}: {} against {best}",
-                d[i]
-            );
+            assert!((di - best).abs() < 1e-12, "voxel {i}: {di} against {best}");
         }
         assert!(distance_to_3d(&vec![false; n], dims).is_none());
         assert!(distance_to_3d(&mask[1..], dims).is_none());
