@@ -57,6 +57,19 @@ fn the_tetrahedron_is_recovered_from_eight_views() {
     let views = tmp.path().join("views");
     let out = tmp.path().join("out");
     render_tetrahedron(&views);
+    // Views to score on that the fit never sees: a turntable of 5 (other azimuths).
+    let other = tmp.path().join("other");
+    let o = ifslab(&[
+        "invert3d",
+        other.to_str().unwrap(),
+        "--render-views",
+        "tetrahedron",
+        "--views-count",
+        "5",
+        "--size",
+        "64",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
     let o = ifslab(
         &[
             "invert3d",
@@ -67,6 +80,8 @@ fn the_tetrahedron_is_recovered_from_eight_views() {
             out.to_str().unwrap(),
             "--truth",
             "tetrahedron",
+            "--score-views",
+            other.to_str().unwrap(),
         ]
         .into_iter()
         .chain(OWN_VIEWS)
@@ -74,6 +89,9 @@ fn the_tetrahedron_is_recovered_from_eight_views() {
     );
     assert!(o.status.success(), "{}", text(&o));
     println!("{}", text(&o));
+    // The views it never saw above the fit's renders: 5 views of 64², two rows.
+    let picture = image::open(out.join("other_views.png")).unwrap();
+    assert_eq!((picture.width(), picture.height()), (5 * 64, 2 * 64));
     for f in [
         "code.json",
         "baseline.json",
@@ -102,6 +120,11 @@ fn the_tetrahedron_is_recovered_from_eight_views() {
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     let fit = s["fit"]["voxel_iou"].as_f64().unwrap();
     let baseline = s["baseline"]["voxel_iou"].as_f64().unwrap();
+    let unseen = &s["other_views"]["loss"];
+    assert!(
+        unseen[1].as_f64().unwrap() < unseen[0].as_f64().unwrap(),
+        "on views it never saw the fit must beat the baseline: {s}"
+    );
     assert!(
         fit >= 0.8,
         "voxel IoU {fit} (baseline {baseline}); summary {s}"

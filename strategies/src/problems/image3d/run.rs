@@ -2,8 +2,9 @@
 //! registered strategy under the shared driver from that code (or a random one), and what
 //! people open — the code (`code.json`, and the baseline's `baseline.json`), the attractor
 //! as a point cloud (`points.ply`), a turntable of renders (`turntable.png`), the views
-//! beside the fit's renders through the same cameras (`views.png`) and `summary.json`
-//! (losses; voxel IoU and Chamfer distance of baseline and fit when a truth is given).
+//! beside the fit's renders through the same cameras (`views.png`; views it never saw, when
+//! given, in `other_views.png`) and `summary.json` (losses; voxel IoU and Chamfer distance
+//! of baseline and fit when a truth is given).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -327,6 +328,10 @@ fn code_start(cfg: &Image3dConfig) -> Result<Vec<SvdMap3>> {
     maps.iter().map(encode_start).collect()
 }
 
+/// The picture of views drawn apart from the fitted ones (`--score-views`) above the fit's
+/// renders through their cameras.
+pub const OTHER_VIEWS_PNG: &str = "other_views.png";
+
 /// Stream the collage start's scores are drawn on (never an iteration's).
 const START_SCORE_STREAM: u64 = u64::MAX - 3;
 
@@ -485,6 +490,13 @@ pub fn write_outputs(
     let fitted = render_views(svd, &views.cameras, &render, probs.as_deref(), cfg.seed)?;
     let rows = [views.image.values.as_slice(), fitted.values.as_slice()];
     save_strip(&dir.join("views.png"), &rows, views.len(), w, h)?;
+    // Views the fit never saw, above the fit's renders through their cameras.
+    if let Some(other) = other {
+        let (ow, oh) = other.size();
+        let fitted = render_views(svd, &other.cameras, &render, probs.as_deref(), cfg.seed)?;
+        let rows = [other.image.values.as_slice(), fitted.values.as_slice()];
+        save_strip(&dir.join(OTHER_VIEWS_PNG), &rows, other.len(), ow, oh)?;
+    }
     let table = turntable_around(&views.cameras, 128)?;
     let turn = render_views(svd, &table, &render, probs.as_deref(), cfg.seed)?;
     save_strip(
