@@ -279,6 +279,39 @@ pub(crate) fn clamp_singular_values(m: &Matrix2<f64>, range: (f64, f64)) -> Matr
     svd.recompose().unwrap_or(*m)
 }
 
+/// Adam's moments over a candidate map's few parameters (β₁ 0.9, β₂ 0.999, ε 10⁻⁸), for the
+/// candidate searches of the plane and of space.
+pub(crate) struct CandidateAdam<const N: usize> {
+    m1: [f64; N],
+    m2: [f64; N],
+    t: i32,
+}
+
+impl<const N: usize> CandidateAdam<N> {
+    pub(crate) fn new() -> Self {
+        CandidateAdam {
+            m1: [0.0; N],
+            m2: [0.0; N],
+            t: 0,
+        }
+    }
+
+    /// The next step (to subtract) for `grad`, parameter `i` at the rate `rate(i)`.
+    pub(crate) fn step(&mut self, grad: &[f64; N], rate: impl Fn(usize) -> f64) -> [f64; N] {
+        let (b1, b2, eps) = (0.9f64, 0.999f64, 1e-8);
+        self.t += 1;
+        let mut delta = [0.0; N];
+        for (i, d) in delta.iter_mut().enumerate() {
+            self.m1[i] = b1 * self.m1[i] + (1.0 - b1) * grad[i];
+            self.m2[i] = b2 * self.m2[i] + (1.0 - b2) * grad[i] * grad[i];
+            let mh = self.m1[i] / (1.0 - b1.powi(self.t));
+            let vh = self.m2[i] / (1.0 - b2.powi(self.t));
+            *d = mh / (vh.sqrt() + eps) * rate(i);
+        }
+        delta
+    }
+}
+
 /// One candidate: a random start moved by Adam on the containment objective. Returns the
 /// map and the share of the ink's image within one pixel of the ink.
 fn candidate(field: &Field, search: &CollageSearch, seed: u64, index: u64) -> (PixelMap, f64) {
@@ -306,10 +339,8 @@ fn candidate(field: &Field, search: &CollageSearch, seed: u64, index: u64) -> (P
         .collect();
     let lambda = search.area_weight * field.size as f64 / 128.0;
     let (lr_g, lr_h) = (0.02, 0.01 * field.size as f64);
-    let (b1, b2, eps) = (0.9f64, 0.999f64, 1e-8);
-    let mut m1 = [0.0f64; 6];
-    let mut m2 = [0.0f64; 6];
-    for step in 0..search.steps {
+    let mut adam = CandidateAdam::<6>::new();
+    for _ in 0..search.steps {
         let mut gg = Matrix2::zeros();
         let mut gh = Vector2::zeros();
         for x in &batch {
@@ -326,15 +357,7 @@ fn candidate(field: &Field, search: &CollageSearch, seed: u64, index: u64) -> (P
             gg -= lambda * ginv.transpose();
         }
         let grad = [gg[(0, 0)], gg[(0, 1)], gg[(1, 0)], gg[(1, 1)], gh[0], gh[1]];
-        let t = (step + 1) as i32;
-        let mut delta = [0.0; 6];
-        for i in 0..6 {
-            m1[i] = b1 * m1[i] + (1.0 - b1) * grad[i];
-            m2[i] = b2 * m2[i] + (1.0 - b2) * grad[i] * grad[i];
-            let mh = m1[i] / (1.0 - b1.powi(t));
-            let vh = m2[i] / (1.0 - b2.powi(t));
-            delta[i] = mh / (vh.sqrt() + eps) * if i < 4 { lr_g } else { lr_h };
-        }
+        let delta = adam.step(&grad, |i| if i < 4 { lr_g } else { lr_h });
         let g = map.g - Matrix2::new(delta[0], delta[1], delta[2], delta[3]);
         map.g = clamp_singular_values(&g, search.scales);
         map.h -= Vector2::new(delta[4], delta[5]);

@@ -38,7 +38,7 @@ use rand_distr::{Distribution, StandardNormal};
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::problems::image::collage::greedy_covers;
+use crate::problems::image::collage::{CandidateAdam, greedy_covers};
 use crate::problems::image3d::hull::Hull;
 use crate::problems::image3d::views::Views;
 
@@ -307,9 +307,8 @@ fn candidate(field: &Field3, search: &CollageSearch3, seed: u64, index: u64) -> 
         .collect();
     let lambda = search.area_weight * field.r as f64 / 64.0;
     let (lr_g, lr_h) = (0.02, 0.01 * field.r as f64);
-    let (b1, b2, eps) = (0.9f64, 0.999f64, 1e-8);
-    let (mut m1, mut m2) = ([0.0f64; 12], [0.0f64; 12]);
-    for step in 0..search.steps {
+    let mut adam = CandidateAdam::<12>::new();
+    for _ in 0..search.steps {
         let mut gg = Matrix3::zeros();
         let mut gh = Vector3::zeros();
         for x in &batch {
@@ -325,16 +324,9 @@ fn candidate(field: &Field3, search: &CollageSearch3, seed: u64, index: u64) -> 
         if let Some(ginv) = map.g.try_inverse() {
             gg -= lambda * ginv.transpose();
         }
-        let t = (step + 1) as i32;
-        let mut delta = [0.0; 12];
-        for (i, d) in delta.iter_mut().enumerate() {
-            let grad = if i < 9 { gg[(i / 3, i % 3)] } else { gh[i - 9] };
-            m1[i] = b1 * m1[i] + (1.0 - b1) * grad;
-            m2[i] = b2 * m2[i] + (1.0 - b2) * grad * grad;
-            let mh = m1[i] / (1.0 - b1.powi(t));
-            let vh = m2[i] / (1.0 - b2.powi(t));
-            *d = mh / (vh.sqrt() + eps) * if i < 9 { lr_g } else { lr_h };
-        }
+        let grad: [f64; 12] =
+            std::array::from_fn(|i| if i < 9 { gg[(i / 3, i % 3)] } else { gh[i - 9] });
+        let delta = adam.step(&grad, |i| if i < 9 { lr_g } else { lr_h });
         let g = map.g - Matrix3::from_row_slice(&delta[..9]);
         map.g = clamp_singular_values(&g, search.scales);
         map.h -= Vector3::new(delta[9], delta[10], delta[11]);
