@@ -407,9 +407,9 @@ fn a_run_folder_shows_target_and_recovered_code_side_by_side() {
 }
 
 /// A tile whose client leaves is not drawn on: a render under way stops at its next batch
-/// of points, and tiles still queued are skipped. One worker, tiles of 10⁸ points (about
-/// 1.6 s each on two cores): the two queued behind the first are dropped 400 ms in, the
-/// first 200 ms later.
+/// of points, and tiles still queued are skipped. One worker, tiles of 10⁸ points (0.43 s
+/// each on two idle cores, the most points a tile may have): the two queued behind the
+/// first are dropped 180 ms in, the first 80 ms later, well before it is drawn.
 #[test]
 fn a_client_that_leaves_cancels_its_tile() {
     let (server, _) = start_with("sierpinski", 100_000_000, 1);
@@ -424,14 +424,14 @@ fn a_client_that_leaves_cancels_its_tile() {
         s
     };
     let first = ask(0);
-    std::thread::sleep(Duration::from_millis(300));
-    let queued = [ask(1), ask(2)];
     std::thread::sleep(Duration::from_millis(100));
+    let queued = [ask(1), ask(2)];
+    std::thread::sleep(Duration::from_millis(80));
     drop(queued);
     // The queued tiles' watchers (every 20 ms) see their clients gone before the worker is
     // free: dropped together, a loaded machine could let the worker pick up a queued tile
     // before its watcher had looked, and draw some of it.
-    std::thread::sleep(Duration::from_millis(200));
+    std::thread::sleep(Duration::from_millis(80));
     drop(first);
     let (stats, took) = wait_for(&server, Duration::from_secs(20), |s| {
         s.cancelled_drawing + s.cancelled_queued == 3
