@@ -32,9 +32,8 @@ use ifslab::chaos::{ChaosGame, mix_seed, points3, trajectory_rng};
 use ifslab::image::distance_to_3d;
 use ifslab::model::ProbabilityRule;
 use ifslab::model::map3::Affine3;
-use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, Vector3};
 use rand::Rng;
-use rand_distr::{Distribution, StandardNormal};
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
@@ -270,15 +269,10 @@ fn clamp_singular_values(m: &Matrix3<f64>, range: (f64, f64)) -> Matrix3<f64> {
     svd.recompose().unwrap_or(*m)
 }
 
-/// A rotation of space uniform on SO(3) (a normalised Gaussian quaternion).
+/// A rotation of space uniform on SO(3) (the library's Haar draw).
 fn random_rotation<R: Rng>(rng: &mut R) -> Matrix3<f64> {
-    let mut q = [0.0f64; 4];
-    for v in q.iter_mut() {
-        *v = StandardNormal.sample(rng);
-    }
-    UnitQuaternion::from_quaternion(Quaternion::new(q[0], q[1], q[2], q[3]))
-        .to_rotation_matrix()
-        .into_inner()
+    let q = ifslab::model::similitude::random_rotation(3, rng);
+    Matrix3::from_fn(|r, c| q[(r, c)])
 }
 
 /// One candidate: a random start moved by Adam on the containment objective; the map and

@@ -27,7 +27,7 @@ pub enum Start3d {
     /// of the hull inside the hull, the cover whose silhouettes match the views best — or
     /// the hull's EM code where its silhouettes match them better. The default: on the
     /// tuning split's eight random 4-map codes it raised the fits' mean voxel IoU from
-    /// 0.636 to 0.967 (README, "In 3-D").
+    /// 0.636 to 0.984 (README, "In 3-D").
     #[default]
     Collage,
     /// A code of space read from a file (`start_code`): a previous fit's `code.json`, or

@@ -362,26 +362,20 @@ fn collage_start(
             mix_seed(cfg.seed, START_SCORE_STREAM),
         )
     };
-    let (collage, em) = (score(&encoded)?, score(baseline)?);
-    Ok(if collage >= em {
-        (
-            encoded,
-            StartScores3d {
-                collage,
-                hull: em,
-                chosen: "collage",
-            },
-        )
+    let (collage, hull) = (score(&encoded)?, score(baseline)?);
+    let (maps, chosen) = if collage >= hull {
+        (encoded, "collage")
     } else {
-        (
-            baseline.to_vec(),
-            StartScores3d {
-                collage,
-                hull: em,
-                chosen: "hull",
-            },
-        )
-    })
+        (baseline.to_vec(), "hull")
+    };
+    Ok((
+        maps,
+        StartScores3d {
+            collage,
+            hull,
+            chosen,
+        },
+    ))
 }
 
 fn to_affine(maps: &[SvdMap3]) -> Vec<Affine3> {
