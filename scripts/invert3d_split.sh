@@ -6,19 +6,23 @@
 #
 #   scripts/invert3d_split.sh test OUT                     # both starts, seed 0
 #   SEEDS="0 1" STARTS="collage" scripts/invert3d_split.sh tune OUT
+#   SIZE=128 ARGS="--trajectories 1600" scripts/invert3d_split.sh test OUT
 #
 # OUT/views/<case>/ holds the views (drawn once), OUT/<start>-s<seed>/<case>/ each run; on
 # the test split OUT/other/<case>/ holds 4 views at 55° elevation the fits never see, scored
 # in each summary.json and drawn above the fit's renders in each run's other_views.png.
 # IFSLAB names the binary (default target/release/ifslab, built if missing); the views need
 # NumPy (target/robustness-venv, made by robustness/make_inputs.sh, or $PYTHON). Two runs go
-# side by side on the machine's cores; each run's seconds are in its summary.json.
+# side by side on the machine's cores; each run's seconds are in its summary.json. SIZE is
+# the views' side in pixels (default 64); ARGS are added to every `ifslab invert3d`.
 set -euo pipefail
 REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 split=${1:?usage: invert3d_split.sh tune|test OUT}
 out=${2:?usage: invert3d_split.sh tune|test OUT}
 SEEDS=${SEEDS:-0}
 STARTS=${STARTS:-"collage hull"}
+SIZE=${SIZE:-64}
+read -r -a extra <<<"${ARGS:-}"
 PY=${PYTHON:-$REPO/target/robustness-venv/bin/python}
 [ -x "$PY" ] || PY=python3
 BIN=${IFSLAB:-$REPO/target/release/ifslab}
@@ -36,13 +40,13 @@ for c in $cases; do
   dir="$out/views/${c/:/}"
   if [ ! -f "$dir/truth.json" ]; then
     if [ "$split" = tune ] && { [ "$c" = fern ] || [ "$c" = tetrahedron ]; }; then
-      $render "$c" "$dir" --distance 2.6 --azimuth0 32.5 --seed 7 >/dev/null
+      $render "$c" "$dir" --size "$SIZE" --distance 2.6 --azimuth0 32.5 --seed 7 >/dev/null
     else
-      $render "$c" "$dir" --distance 2.6 >/dev/null
+      $render "$c" "$dir" --size "$SIZE" --distance 2.6 >/dev/null
     fi
   fi
   if [ "$split" = test ] && [ ! -f "$out/other/${c/:/}/truth.json" ]; then
-    $render "$c" "$out/other/${c/:/}" --distance 2.6 --views 4 --elevation 55 --azimuth0 32.5 >/dev/null
+    $render "$c" "$out/other/${c/:/}" --size "$SIZE" --distance 2.6 --views 4 --elevation 55 --azimuth0 32.5 >/dev/null
   fi
 done
 jobs=0
@@ -57,7 +61,7 @@ for seed in $SEEDS; do
       other=()
       [ "$split" = test ] && other=(--score-views "$out/other/$name")
       "$BIN" invert3d "$out/views/$name" --maps 4 -o "$run" --truth "$out/views/$name/truth.json" \
-        --seed "$seed" --start "$start" "${other[@]}" >"$run.log" 2>&1 &
+        --seed "$seed" --start "$start" "${other[@]}" "${extra[@]}" >"$run.log" 2>&1 &
       jobs=$((jobs + 1))
       if [ $((jobs % 2)) = 0 ]; then wait; fi
     done

@@ -120,6 +120,8 @@ fn the_tetrahedron_is_recovered_from_eight_views() {
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     let fit = s["fit"]["voxel_iou"].as_f64().unwrap();
     let baseline = s["baseline"]["voxel_iou"].as_f64().unwrap();
+    // The trajectories named by the flags, not the 400 per 64² the views' size would give.
+    assert_eq!(s["trajectories"], 100, "{s}");
     let unseen = &s["other_views"]["loss"];
     assert!(
         unseen[1].as_f64().unwrap() < unseen[0].as_f64().unwrap(),

@@ -10,6 +10,11 @@
 //!
 //! The maps are the 3-D fern's (four maps, one of them nearly flat); the views are the
 //! Sierpiński tetrahedron's, drawn by the same splat with another seed.
+//!
+//! Group `collage3_64`: the start of an `invert3d` fit on those views — the visual hull
+//! carved at 64³ (`hull`) and the collage search in space for four maps at its defaults
+//! (`collage_search`: 4000 candidate maps, 150 Adam steps each, ten greedy covers scored
+//! by their silhouettes).
 
 use std::hint::black_box;
 
@@ -19,7 +24,9 @@ use ifslab::model::map3::{DiffMap, SvdMap3, fern_3d, sierpinski_tetrahedron};
 use ifslab::render::Renderer;
 use ifslab::render::splat3d::{Lens, MultiViewConfig, MultiViewSplat, turntable};
 use ifslab_strategies::driver::Differentiable;
-use ifslab_strategies::problems::image3d::{Image3dConfig, Image3dProblem, Views};
+use ifslab_strategies::problems::image3d::{
+    CollageSearch3, HullConfig, Image3dConfig, Image3dProblem, Views, collage_covers3, visual_hull,
+};
 
 #[global_allocator]
 static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
@@ -88,6 +95,19 @@ fn bench_image3d(c: &mut Criterion) {
     });
     g.bench_function("iteration", |b| {
         b.iter(|| black_box(problem.evaluate(&theta, 3).unwrap().loss))
+    });
+    g.finish();
+
+    let hull_cfg = HullConfig::default();
+    let mut g = c.benchmark_group("collage3_64");
+    g.sample_size(10);
+    g.bench_function("hull", |b| {
+        b.iter(|| black_box(visual_hull(&views, &hull_cfg).unwrap().kept.len()))
+    });
+    let hull = visual_hull(&views, &hull_cfg).unwrap();
+    let search = CollageSearch3::default();
+    g.bench_function("collage_search", |b| {
+        b.iter(|| black_box(collage_covers3(&hull, &views, 4, 0, &search).unwrap()[0].score))
     });
     g.finish();
 }

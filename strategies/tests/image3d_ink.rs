@@ -30,7 +30,7 @@ fn the_ink_guard_keeps_a_fit_from_shrinking() {
                 supersample: 4,
                 sigma: 1.5,
                 sigma_final: Some(1.0),
-                trajectories: 400,
+                trajectories: Some(400),
                 ..Render3dConfig::default()
             },
             ink,

@@ -82,7 +82,7 @@ pub struct Args {
     /// Adam's learning rate (with --strategy adam).
     #[arg(long, default_value_t = 0.03)]
     pub lr: f64,
-    /// Chaos-game trajectories per step (150 kept points each). [default: 400]
+    /// Chaos-game trajectories per step (150 kept points each). [default: 400 per 64² of a view: 1600 at 128²]
     #[arg(long)]
     pub trajectories: Option<usize>,
     /// The splat's supersampling per side. [default: 4]
@@ -197,7 +197,7 @@ fn config(a: &Args) -> anyhow::Result<Image3dRunConfig> {
         },
         strategy,
         render: Render3dConfig {
-            trajectories: a.trajectories.unwrap_or(defaults.trajectories),
+            trajectories: a.trajectories.or(defaults.trajectories),
             supersample: a.supersample.unwrap_or(defaults.supersample),
             sigma: a.sigma.unwrap_or(defaults.sigma),
             sigma_final: a.sigma_final.or(defaults.sigma_final),

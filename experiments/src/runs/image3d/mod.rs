@@ -285,7 +285,7 @@ pub fn render_turntable(
         files: None,
     };
     let cameras = table.cameras(side, side)?;
-    let mut render = Render3dConfig::default().multi_view();
+    let mut render = Render3dConfig::default().multi_view((side, side));
     render.supersample = 1;
     render.sigma = 0.8;
     render.game.trajectories = 400;

@@ -39,7 +39,8 @@
 
 use ifslab::chaos::{MapSampler, Trajectory, mix_seed, trajectory_rng};
 use ifslab::model::{Affine2, ProbabilityRule};
-use nalgebra::{Matrix2, Vector2};
+use nalgebra::allocator::Allocator;
+use nalgebra::{DefaultAllocator, DimDiff, DimMin, DimSub, Matrix2, OMatrix, U1, Vector2};
 use rand::Rng;
 use rayon::prelude::*;
 
@@ -270,13 +271,21 @@ pub(crate) fn attractor_points(
     )
 }
 
-/// `m` with its singular values clamped into `range`.
-pub(crate) fn clamp_singular_values(m: &Matrix2<f64>, range: (f64, f64)) -> Matrix2<f64> {
-    let mut svd = m.svd(true, true);
+/// `m` with its singular values clamped into `range` (the candidate searches of the plane and
+/// of space).
+pub(crate) fn clamp_singular_values<D>(
+    m: &OMatrix<f64, D, D>,
+    range: (f64, f64),
+) -> OMatrix<f64, D, D>
+where
+    D: DimMin<D, Output = D> + DimSub<U1>,
+    DefaultAllocator: Allocator<D, D> + Allocator<D> + Allocator<DimDiff<D, U1>>,
+{
+    let mut svd = m.clone().svd(true, true);
     for s in svd.singular_values.iter_mut() {
         *s = s.clamp(range.0, range.1);
     }
-    svd.recompose().unwrap_or(*m)
+    svd.recompose().unwrap_or_else(|_| m.clone())
 }
 
 /// Adam's moments over a candidate map's few parameters (β₁ 0.9, β₂ 0.999, ε 10⁻⁸), for the

@@ -37,7 +37,7 @@ use rand::Rng;
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::problems::image::collage::{CandidateAdam, greedy_covers};
+use crate::problems::image::collage::{CandidateAdam, clamp_singular_values, greedy_covers};
 use crate::problems::image3d::hull::Hull;
 use crate::problems::image3d::views::Views;
 
@@ -258,15 +258,6 @@ impl Field3 {
             b: map.g * e + map.h * self.voxel - e,
         }
     }
-}
-
-/// `m` with its singular values clamped into `range`.
-fn clamp_singular_values(m: &Matrix3<f64>, range: (f64, f64)) -> Matrix3<f64> {
-    let mut svd = m.svd(true, true);
-    for s in svd.singular_values.iter_mut() {
-        *s = s.clamp(range.0, range.1);
-    }
-    svd.recompose().unwrap_or(*m)
 }
 
 /// A rotation of space uniform on SO(3) (the library's Haar draw).

@@ -118,9 +118,14 @@ pub fn score_views(
     indices: Vec<usize>,
 ) -> Result<HeldOut3d> {
     let score = |maps: &[SvdMap3]| -> Result<(f64, f64)> {
-        let mut scorer =
-            Image3dProblem::<f32>::new(maps, views, cfg.render.multi_view(), cfg.loss(), cfg.seed)?
-                .with_map_choice(cfg.probabilities);
+        let mut scorer = Image3dProblem::<f32>::new(
+            maps,
+            views,
+            cfg.render.multi_view(views.size()),
+            cfg.loss(),
+            cfg.seed,
+        )?
+        .with_map_choice(cfg.probabilities);
         if let Some(end) = cfg.render.sigma_final {
             scorer = scorer.with_sigma_schedule(end, cfg.iterations)?;
         }
@@ -244,7 +249,7 @@ pub fn run_image3d_in(
     let mut problem = Image3dProblem::<f32>::new(
         &start_maps,
         views,
-        cfg.render.multi_view(),
+        cfg.render.multi_view(views.size()),
         cfg.loss(),
         cfg.seed,
     )?
@@ -400,6 +405,8 @@ pub struct Summary3d {
     pub size: [usize; 2],
     /// Maps fitted.
     pub maps: usize,
+    /// Chaos-game trajectories per step (named, or by the views' size).
+    pub trajectories: usize,
     /// Strategy iterations run.
     pub iterations: u64,
     /// `start` or `last`.
@@ -476,7 +483,7 @@ pub fn write_outputs(
     write_ply(&dir.join("points.ply"), &points)?;
 
     // The fit and the views through the views' cameras, and a turntable around the fit.
-    let mut render = cfg.render.multi_view();
+    let mut render = cfg.render.multi_view(views.size());
     render.sigma = cfg.render.sigma_final.unwrap_or(cfg.render.sigma);
     render.game.trajectories *= 4;
     let svd = &outcome.svd_maps;
@@ -536,6 +543,7 @@ pub fn write_outputs(
         views: views.len(),
         size: [w, h],
         maps: outcome.maps.len(),
+        trajectories: cfg.render.trajectories_for((w, h)),
         iterations: outcome.iterations,
         returned: outcome.returned,
         loss: Losses3d {
